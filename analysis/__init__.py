@@ -1,0 +1,1 @@
+"""From a study database or CSV to tidy frames, statistics, figures and the report."""

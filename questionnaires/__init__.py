@@ -1,0 +1,1 @@
+"""Questionnaire instruments (NASA-TLX, experience): items, validation, scoring. Pure."""

@@ -1,0 +1,650 @@
+"""Scenarios: a room described as TOML, validated into frozen dataclasses.
+
+A scenario file (``sim/scenarios/*.toml``) holds the static geometry (walls,
+boxes, cylinders, tables), the start pose A, the dock pose B under a table, the
+object to inspect, the polygon that starts secondary-task questions, the robot's
+footprint and sensor mounts, and optional semantic settings and overrides.
+Semantic components are derived from the geometry (``sim.semantics``), so a
+new scene needs no hand annotation.
+
+Every field is checked on load; a bad one raises ``ValueError`` naming the
+file, the field (``walls[3].thickness``) and what is allowed, which the CLI
+turns into one line and exit status 2.
+
+File format (units: metres, degrees in files, radians in the dataclasses)::
+
+    name = "cluttered_room"
+    description = "..."
+    bounds = [[0.0, 0.0], [14.0, 10.0]]     # map extent [[x_min, y_min], [x_max, y_max]]
+
+    [start]                                  # pose A
+    x = 1.0
+    y = 1.0
+    yaw_deg = 0.0
+
+    [dock]                                   # pose B, under a table (optional)
+    x = 12.0
+    y = 8.0
+    yaw_deg = 90.0
+    table = "table"
+    tolerance_m = 0.15
+    tolerance_deg = 15.0
+
+    [[walls]]                                # a wall segment of given thickness
+    name = "outer_south"
+    from = [0.0, 0.0]
+    to = [14.0, 0.0]
+    thickness = 0.1                          # optional, default 0.1
+    height = 1.2                             # optional, default 1.2
+
+    [[boxes]]                                # free-standing obstacle
+    name = "crate"
+    centre = [3.0, 2.0]
+    size = [0.6, 0.4]
+    yaw_deg = 0.0
+    height = 0.8
+    colour = [0.55, 0.4, 0.25]
+
+    [[cylinders]]
+    name = "red_cylinder"
+    centre = [6.0, 4.0]
+    radius = 0.2
+    height = 1.0
+    colour = [0.9, 0.1, 0.1]
+
+    [[tables]]                               # four legs and a top the robot fits under
+    name = "table"
+    centre = [12.0, 8.0]
+    size = [1.2, 0.9]
+    height = 0.75
+    yaw_deg = 0.0
+    leg = 0.06
+
+    inspection_object = "red_cylinder"       # optional: name of a box or cylinder
+
+    [question_region]                        # optional
+    polygon = [[4, 3], [8, 3], [8, 6], [4, 6]]
+
+    [robot]                                  # all optional, defaults below
+    length = 0.6
+    width = 0.5
+    ...
+    [[robot.lasers]]
+    name = "front"
+    position = [0.3, 0.0]
+    yaw_deg = 0.0
+
+    [semantics]                              # optional
+    passage_width = [0.6, 1.1]               # clear widths counted as doorway or gap [m]
+    [[semantics.components]]                 # add a component or override a derived one
+    id = "doorway_0"
+    kind = "doorway"
+    centre = [5.0, 3.0]
+    ends = [[5.0, 2.6], [5.0, 3.4]]
+    [[semantics.remove]]                     # drop a derived component by id
+    id = "gap_3"
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from sim.fields import FieldReader
+from sim.types import COMPONENT_KINDS, Pose2D
+
+SCENARIO_DIR = Path(__file__).resolve().parent / "scenarios"
+
+
+# --------------------------------------------------------------------------- types
+
+
+@dataclass(frozen=True, slots=True)
+class Box:
+    """An oriented box standing on the floor. Walls are boxes of kind ``wall``."""
+
+    name: str
+    kind: str  # "wall" or "obstacle"
+    centre: tuple[float, float]  # [m]
+    size: tuple[float, float]  # (along its own x, along its own y) [m]
+    yaw: float  # [rad]
+    height: float  # [m]
+    colour: tuple[float, float, float]  # RGB in [0, 1]
+
+    def corners(self) -> np.ndarray:
+        """Footprint corners in the map frame, counter-clockwise (4, 2) [m]."""
+        hx, hy = self.size[0] / 2, self.size[1] / 2
+        local = np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]])
+        return Pose2D(self.centre[0], self.centre[1], self.yaw).to_map_frame(local)
+
+
+@dataclass(frozen=True, slots=True)
+class Cylinder:
+    name: str
+    centre: tuple[float, float]  # [m]
+    radius: float  # [m]
+    height: float  # [m]
+    colour: tuple[float, float, float]
+
+
+@dataclass(frozen=True, slots=True)
+class Table:
+    """A table: four square legs at the corners and a top at ``height``."""
+
+    name: str
+    centre: tuple[float, float]  # [m]
+    size: tuple[float, float]  # top size [m]
+    yaw: float  # [rad]
+    height: float  # [m] underside of the top
+    leg: float  # [m] side of a square leg
+    top_thickness: float  # [m]
+    colour: tuple[float, float, float]
+
+    def leg_boxes(self) -> tuple[Box, ...]:
+        """The four legs as obstacle boxes (what a laser at robot height sees)."""
+        hx, hy = self.size[0] / 2 - self.leg / 2, self.size[1] / 2 - self.leg / 2
+        pose = Pose2D(self.centre[0], self.centre[1], self.yaw)
+        centres = pose.to_map_frame(np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]]))
+        return tuple(
+            Box(
+                name=f"{self.name}.leg{i}",
+                kind="obstacle",
+                centre=(float(c[0]), float(c[1])),
+                size=(self.leg, self.leg),
+                yaw=self.yaw,
+                height=self.height,
+                colour=self.colour,
+            )
+            for i, c in enumerate(centres)
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class Dock:
+    pose: Pose2D  # pose B
+    table: str  # name of the table it is under ("" if none)
+    tolerance_m: float  # position tolerance for "docked" [m]
+    tolerance_rad: float  # heading tolerance [rad]
+
+
+@dataclass(frozen=True, slots=True)
+class LaserSpec:
+    name: str
+    position: tuple[float, float]  # [m] in the robot frame
+    yaw: float  # [rad] in the robot frame
+    fov: float  # [rad] total field of view
+    resolution: float  # [rad] between beams
+    max_range: float  # [m]
+    min_range: float  # [m]
+    height: float  # [m] above the floor
+    sigma: float  # [m] Gaussian range noise
+
+    @property
+    def n_beams(self) -> int:
+        return int(round(self.fov / self.resolution)) + 1
+
+
+@dataclass(frozen=True, slots=True)
+class CameraSpec:
+    position: tuple[float, float]  # [m] in the robot frame
+    height: float  # [m] above the floor
+    pitch: float  # [rad], negative looks down
+    fov: float  # [rad] vertical field of view
+    width: int  # [px]
+    height_px: int  # [px]
+    far: float  # [m]
+
+
+@dataclass(frozen=True, slots=True)
+class RobotSpec:
+    """A holonomic base with a rectangular footprint (spec section 1 and 7)."""
+
+    length: float  # [m] along the robot's x
+    width: float  # [m] along the robot's y
+    height: float  # [m]
+    mass: float  # [kg]
+    max_speed: float  # [m/s] translational limit (thesis 7.6.1.1: 1.0)
+    max_yaw_rate: float  # [rad/s] (thesis: 1.2)
+    max_accel: float  # [m/s^2]
+    max_yaw_accel: float  # [rad/s^2]
+    protective_margin: float  # [m] laser protective field beyond the footprint
+    pose_sigma: tuple[float, float]  # pose-estimate noise ([m], [rad])
+    imu_sigma: tuple[float, float]  # IMU noise (yaw rate [rad/s], acceleration [m/s^2])
+    lasers: tuple[LaserSpec, ...]
+    camera: CameraSpec
+
+    def footprint(self) -> np.ndarray:
+        """Footprint corners in the robot frame, counter-clockwise (4, 2) [m]."""
+        hx, hy = self.length / 2, self.width / 2
+        return np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]])
+
+
+@dataclass(frozen=True, slots=True)
+class ComponentOverride:
+    """A component added by hand, or replacing a derived one with the same id."""
+
+    id: str
+    kind: str
+    centre: tuple[float, float]
+    ends: tuple[tuple[float, float], ...]  # () or two points
+    points: tuple[tuple[float, float], ...]  # surface points, () for passages and dock
+
+
+@dataclass(frozen=True, slots=True)
+class SemanticSettings:
+    passage_width: tuple[float, float]  # [m] clear widths counted as doorway or gap
+    surface_spacing: float  # [m] between sampled surface points of objects and walls
+    components: tuple[ComponentOverride, ...]
+    remove: tuple[str, ...]  # ids of derived components to drop
+
+
+@dataclass(frozen=True, slots=True)
+class Scenario:
+    name: str
+    description: str
+    source: str  # the file it was loaded from ("" if built in code)
+    bounds: tuple[tuple[float, float], tuple[float, float]]  # ((x_min, y_min), (x_max, y_max))
+    start: Pose2D  # pose A
+    dock: Dock | None  # pose B
+    walls: tuple[Box, ...]
+    boxes: tuple[Box, ...]
+    cylinders: tuple[Cylinder, ...]
+    tables: tuple[Table, ...]
+    inspection_object: str  # name of a box or cylinder, "" if none
+    question_region: np.ndarray  # (k, 2) [m] polygon, (0, 2) if none
+    robot: RobotSpec
+    semantics: SemanticSettings
+
+    def obstacle_boxes(self) -> tuple[Box, ...]:
+        """Everything box-shaped a laser at robot height sees: walls, boxes, table legs."""
+        legs = tuple(b for t in self.tables for b in t.leg_boxes())
+        return self.walls + self.boxes + legs
+
+    def element(self, name: str) -> Box | Cylinder | Table:
+        """The scene element called ``name``; ``KeyError`` if there is none."""
+        for e in (*self.walls, *self.boxes, *self.cylinders, *self.tables):
+            if e.name == name:
+                return e
+        raise KeyError(name)
+
+
+# ------------------------------------------------------------------------ defaults
+
+DEFAULT_LASERS = (
+    {"name": "front", "position": [0.3, 0.0], "yaw_deg": 0.0},
+    {"name": "rear", "position": [-0.3, 0.0], "yaw_deg": 180.0},
+)
+LASER_DEFAULTS = {
+    "fov_deg": 270.0,
+    "resolution_deg": 1.0,
+    "max_range": 8.0,
+    "min_range": 0.05,
+    "height": 0.2,
+    "sigma": 0.01,
+}
+ROBOT_DEFAULTS = {
+    "length": 0.6,
+    "width": 0.5,
+    "height": 0.4,
+    "mass": 40.0,
+    "max_speed": 1.0,
+    "max_yaw_rate": 1.2,
+    "max_accel": 2.0,
+    "max_yaw_accel": 4.0,
+    "protective_margin": 0.05,
+    "pose_sigma": [0.005, 0.002],
+    "imu_sigma": [0.01, 0.05],
+}
+CAMERA_DEFAULTS = {
+    "position": [0.25, 0.0],
+    "height": 0.9,
+    "pitch_deg": -15.0,
+    "fov_deg": 60.0,
+    "width": 320,
+    "height_px": 240,
+    "far": 15.0,
+}
+
+
+# -------------------------------------------------------------------------- loading
+
+
+def _pose(r: FieldReader) -> Pose2D:
+    return Pose2D(r.number("x"), r.number("y"), math.radians(r.number("yaw_deg", 0.0)))
+
+
+def _wall(r: FieldReader) -> Box:
+    a = np.array(r.vector("from", 2))
+    b = np.array(r.vector("to", 2))
+    thickness = r.number("thickness", 0.1, positive=True)
+    length = float(np.hypot(*(b - a)))
+    if length <= 0:
+        raise r.fail("to", "must differ from 'from'")
+    centre = (a + b) / 2
+    box = Box(
+        name=r.string("name"),
+        kind="wall",
+        centre=(float(centre[0]), float(centre[1])),
+        size=(length, thickness),
+        yaw=math.atan2(b[1] - a[1], b[0] - a[0]),
+        height=r.number("height", 1.2, positive=True),
+        colour=r.vector("colour", 3, [0.82, 0.82, 0.78], unit=True),
+    )
+    r.finish()
+    return box
+
+
+def _box(r: FieldReader) -> Box:
+    box = Box(
+        name=r.string("name"),
+        kind="obstacle",
+        centre=r.vector("centre", 2),
+        size=r.vector("size", 2, positive=True),
+        yaw=math.radians(r.number("yaw_deg", 0.0)),
+        height=r.number("height", 0.8, positive=True),
+        colour=r.vector("colour", 3, [0.55, 0.42, 0.28], unit=True),
+    )
+    r.finish()
+    return box
+
+
+def _cylinder(r: FieldReader) -> Cylinder:
+    c = Cylinder(
+        name=r.string("name"),
+        centre=r.vector("centre", 2),
+        radius=r.number("radius", positive=True),
+        height=r.number("height", 1.0, positive=True),
+        colour=r.vector("colour", 3, [0.3, 0.3, 0.35], unit=True),
+    )
+    r.finish()
+    return c
+
+
+def _table(r: FieldReader, robot: RobotSpec) -> Table:
+    t = Table(
+        name=r.string("name"),
+        centre=r.vector("centre", 2),
+        size=r.vector("size", 2, positive=True),
+        yaw=math.radians(r.number("yaw_deg", 0.0)),
+        height=r.number("height", 0.75, positive=True),
+        leg=r.number("leg", 0.06, positive=True),
+        top_thickness=r.number("top_thickness", 0.04, positive=True),
+        colour=r.vector("colour", 3, [0.45, 0.3, 0.18], unit=True),
+    )
+    if t.height <= robot.height:
+        raise r.fail("height", f"must exceed the robot's height {robot.height} m to dock under it")
+    if 2 * t.leg >= min(t.size):
+        raise r.fail("leg", "must be less than half the table's smaller side")
+    r.finish()
+    return t
+
+
+def _laser(r: FieldReader, defaults: dict[str, Any]) -> LaserSpec:
+    d = {**LASER_DEFAULTS, **defaults}
+    spec = LaserSpec(
+        name=r.string("name", d.get("name")),
+        position=r.vector("position", 2, d.get("position")),
+        yaw=math.radians(r.number("yaw_deg", d.get("yaw_deg", 0.0))),
+        fov=math.radians(r.number("fov_deg", d["fov_deg"], positive=True)),
+        resolution=math.radians(r.number("resolution_deg", d["resolution_deg"], positive=True)),
+        max_range=r.number("max_range", d["max_range"], positive=True),
+        min_range=r.number("min_range", d["min_range"], non_negative=True),
+        height=r.number("height", d["height"], positive=True),
+        sigma=r.number("sigma", d["sigma"], non_negative=True),
+    )
+    if spec.fov > 2 * math.pi:
+        raise r.fail("fov_deg", "must be at most 360")
+    if spec.min_range >= spec.max_range:
+        raise r.fail("min_range", "must be less than max_range")
+    r.finish()
+    return spec
+
+
+def _robot(r: FieldReader) -> RobotSpec:
+    d = ROBOT_DEFAULTS
+    lasers = r.tables("lasers")
+    if lasers:
+        laser_specs = tuple(_laser(lr, {}) for lr in lasers)
+    else:
+        laser_specs = tuple(_laser(FieldReader(r.path, {}, ""), ld) for ld in DEFAULT_LASERS)
+    names = [s.name for s in laser_specs]
+    if len(set(names)) != len(names):
+        raise r.fail("lasers", f"names must be unique, got {names}")
+    cr = r.sub("camera")
+    cd = CAMERA_DEFAULTS
+    camera = CameraSpec(
+        position=cr.vector("position", 2, cd["position"]),
+        height=cr.number("height", cd["height"], positive=True),
+        pitch=math.radians(cr.number("pitch_deg", cd["pitch_deg"])),
+        fov=math.radians(cr.number("fov_deg", cd["fov_deg"], positive=True)),
+        width=cr.integer("width", cd["width"], minimum=16),
+        height_px=cr.integer("height_px", cd["height_px"], minimum=16),
+        far=cr.number("far", cd["far"], positive=True),
+    )
+    cr.finish()
+    spec = RobotSpec(
+        length=r.number("length", d["length"], positive=True),
+        width=r.number("width", d["width"], positive=True),
+        height=r.number("height", d["height"], positive=True),
+        mass=r.number("mass", d["mass"], positive=True),
+        max_speed=r.number("max_speed", d["max_speed"], positive=True),
+        max_yaw_rate=r.number("max_yaw_rate", d["max_yaw_rate"], positive=True),
+        max_accel=r.number("max_accel", d["max_accel"], positive=True),
+        max_yaw_accel=r.number("max_yaw_accel", d["max_yaw_accel"], positive=True),
+        protective_margin=r.number("protective_margin", d["protective_margin"], non_negative=True),
+        pose_sigma=r.vector("pose_sigma", 2, d["pose_sigma"]),
+        imu_sigma=r.vector("imu_sigma", 2, d["imu_sigma"]),
+        lasers=laser_specs,
+        camera=camera,
+    )
+    if min(spec.pose_sigma) < 0 or min(spec.imu_sigma) < 0:
+        raise r.fail("pose_sigma", "noise levels must be zero or positive")
+    r.finish()
+    return spec
+
+
+def _override(r: FieldReader) -> ComponentOverride:
+    kind = r.string("kind", allowed=COMPONENT_KINDS)
+    ends = (
+        r.points("ends", minimum=2, default=[]) if kind in ("doorway", "gap") else np.empty((0, 2))
+    )
+    if kind in ("doorway", "gap") and len(ends) != 2:
+        raise r.fail("ends", "a doorway or gap needs exactly two end points")
+    pts = (
+        r.points("points", minimum=1, default=[])
+        if kind in ("object", "wall")
+        else np.empty((0, 2))
+    )
+    if kind in ("object", "wall") and len(pts) == 0:
+        raise r.fail("points", "an object or wall needs at least one surface point")
+    if kind in ("object", "wall"):
+        centre = r.vector("centre", 2, [float(v) for v in pts.mean(axis=0)])
+    else:
+        centre = r.vector("centre", 2)
+    o = ComponentOverride(
+        id=r.string("id"),
+        kind=kind,
+        centre=centre,
+        ends=tuple(tuple(p) for p in ends.tolist()),
+        points=tuple(tuple(p) for p in pts.tolist()),
+    )
+    r.finish()
+    return o
+
+
+def _semantics(r: FieldReader) -> SemanticSettings:
+    width = r.vector("passage_width", 2, [0.6, 1.1], positive=True)
+    if width[0] >= width[1]:
+        raise r.fail("passage_width", f"must be [min, max] with min < max, got {list(width)}")
+    removes = []
+    for rr in r.tables("remove"):
+        removes.append(rr.string("id"))
+        rr.finish()
+    s = SemanticSettings(
+        passage_width=width,
+        surface_spacing=r.number("surface_spacing", 0.1, positive=True),
+        components=tuple(_override(cr) for cr in r.tables("components")),
+        remove=tuple(removes),
+    )
+    r.finish()
+    return s
+
+
+def _inside(polygon: np.ndarray, x: float, y: float) -> bool:
+    """Even-odd rule point-in-polygon."""
+    inside = False
+    n = len(polygon)
+    for i in range(n):
+        (x1, y1), (x2, y2) = polygon[i], polygon[(i + 1) % n]
+        if (y1 > y) != (y2 > y) and x < x1 + (y - y1) * (x2 - x1) / (y2 - y1):
+            inside = not inside
+    return inside
+
+
+def parse_scenario(data: dict[str, Any], source: str = "<scenario>") -> Scenario:
+    """Validate a scenario read from TOML into a :class:`Scenario`.
+
+    Raises ``ValueError`` naming ``source`` and the offending field.
+    """
+    r = FieldReader(source, data)
+    name = r.string("name")
+    description = r.string("description", "")
+    robot = _robot(r.sub("robot"))
+    walls = tuple(_wall(w) for w in r.tables("walls"))
+    boxes = tuple(_box(b) for b in r.tables("boxes"))
+    cylinders = tuple(_cylinder(c) for c in r.tables("cylinders"))
+    tables = tuple(_table(t, robot) for t in r.tables("tables"))
+    if not (walls or boxes or cylinders or tables):
+        raise r.fail("walls", "a scenario needs at least one wall, box, cylinder or table")
+
+    names = [e.name for e in (*walls, *boxes, *cylinders, *tables)]
+    seen: set[str] = set()
+    for n in names:
+        if n in seen:
+            raise r.fail("name", f"element names must be unique; {n!r} appears twice")
+        seen.add(n)
+
+    bounds_pts = r.points("bounds", minimum=2, default=[])
+    if len(bounds_pts) == 0:  # derive from the geometry with a margin
+        corners = [
+            b.corners() for b in (*walls, *boxes, *(leg for t in tables for leg in t.leg_boxes()))
+        ]
+        corners += [
+            np.array(
+                [
+                    [c.centre[0] - c.radius, c.centre[1] - c.radius],
+                    [c.centre[0] + c.radius, c.centre[1] + c.radius],
+                ]
+            )
+            for c in cylinders
+        ]
+        allc = np.vstack(corners)
+        lo, hi = allc.min(axis=0) - 0.5, allc.max(axis=0) + 0.5
+    else:
+        if len(bounds_pts) != 2 or np.any(bounds_pts[1] <= bounds_pts[0]):
+            raise r.fail("bounds", "must be [[x_min, y_min], [x_max, y_max]] with max > min")
+        lo, hi = bounds_pts[0], bounds_pts[1]
+    bounds = ((float(lo[0]), float(lo[1])), (float(hi[0]), float(hi[1])))
+
+    start_r = r.sub("start")
+    start = _pose(start_r)
+    start_r.finish()
+
+    dock = None
+    dock_table = r.table("dock")
+    if dock_table is not None:
+        dr = FieldReader(source, dock_table, "dock.")
+        table_names = [t.name for t in tables]
+        dock = Dock(
+            pose=_pose(dr),
+            table=dr.string("table", table_names[0] if table_names else ""),
+            tolerance_m=dr.number("tolerance_m", 0.15, positive=True),
+            tolerance_rad=math.radians(dr.number("tolerance_deg", 15.0, positive=True)),
+        )
+        if dock.table and dock.table not in table_names:
+            raise dr.fail(
+                "table",
+                f"must name a table of this scenario ({', '.join(table_names) or 'none'}), "
+                f"got {dock.table!r}",
+            )
+        dr.finish()
+
+    inspection = r.string("inspection_object", "")
+    inspectable = [e.name for e in (*boxes, *cylinders)]
+    if inspection and inspection not in inspectable:
+        raise r.fail(
+            "inspection_object",
+            f"must name a box or cylinder ({', '.join(inspectable)}), got {inspection!r}",
+        )
+
+    qr = r.sub("question_region")
+    region = qr.points("polygon", minimum=3, default=[]) if qr.data else np.empty((0, 2))
+    qr.finish()
+
+    semantics = _semantics(r.sub("semantics"))
+    r.finish()
+
+    for label, pose in (("start", start), ("dock", dock.pose if dock else None)):
+        if pose is not None and not (lo[0] <= pose.x <= hi[0] and lo[1] <= pose.y <= hi[1]):
+            raise ValueError(
+                f"{source}: field '{label}': pose ({pose.x}, {pose.y}) lies outside "
+                f"the bounds {list(map(list, bounds))}"
+            )
+    scenario = Scenario(
+        name=name,
+        description=description,
+        source=source,
+        bounds=bounds,
+        start=start,
+        dock=dock,
+        walls=walls,
+        boxes=boxes,
+        cylinders=cylinders,
+        tables=tables,
+        inspection_object=inspection,
+        question_region=region,
+        robot=robot,
+        semantics=semantics,
+    )
+    return scenario
+
+
+def load_scenario(name_or_path: str | Path) -> Scenario:
+    """Load a shipped scenario by name (``"cluttered_room"``) or any TOML file by path.
+
+    Raises ``ValueError`` (naming file and field) on bad content and
+    ``FileNotFoundError`` when neither a shipped scenario nor a file matches.
+    """
+    path = Path(name_or_path)
+    if not path.suffix and not path.exists():
+        candidate = SCENARIO_DIR / f"{name_or_path}.toml"
+        if not candidate.exists():
+            raise ValueError(
+                f"{name_or_path}: not a scenario file and not a shipped scenario; "
+                f"shipped: {', '.join(available_scenarios())}"
+            )
+        path = candidate
+    if not path.is_file():
+        raise FileNotFoundError(2, "No such file", str(path))
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as error:
+        raise ValueError(f"{path}: not valid TOML: {error}") from None
+    except UnicodeDecodeError:
+        raise ValueError(f"{path}: not a UTF-8 text file") from None
+    return parse_scenario(data, str(path))
+
+
+def available_scenarios() -> list[str]:
+    """Names of the scenarios shipped in ``sim/scenarios``, sorted."""
+    return sorted(p.stem for p in SCENARIO_DIR.glob("*.toml"))
+
+
+def point_in_region(scenario: Scenario, x: float, y: float) -> bool:
+    """Whether map point (x, y) lies in the scenario's question region."""
+    return len(scenario.question_region) >= 3 and _inside(scenario.question_region, x, y)

@@ -1,0 +1,94 @@
+"""The ``asa`` command line: one subcommand per job, each a thin shell over a plain
+Python function.
+
+Subcommands live in their own modules and are imported only when used, so
+``asa --help`` stays fast and a broken optional piece cannot break the others.
+To add one, write ``study/cli/<name>.py`` exposing a click command or group
+and add a line to ``COMMANDS``.
+
+Bad input anywhere (a malformed file, an unknown name, an impossible option)
+is raised as ``ValueError``/``TypeError`` (or ``FileNotFoundError``) with the
+file, field and what is allowed; :func:`main` turns it into one line on stderr
+and exit status 2. Set ``ASA_DEBUG=1`` to see the traceback instead.
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+import sys
+
+import click
+
+from study import __version__
+
+# name -> ("module:attribute", one-line help shown by ``asa --help``)
+COMMANDS: dict[str, tuple[str, str]] = {
+    "scenario": ("study.cli.scenario:scenario", "Inspect scenarios: components, map, PNG."),
+    "bench": ("study.cli.bench:bench", "Measure the performance budgets (one JSON object)."),
+}
+
+
+class LazyGroup(click.Group):
+    """A click group whose subcommands are imported on first use."""
+
+    def list_commands(self, ctx: click.Context) -> list[str]:
+        return sorted(COMMANDS)
+
+    def get_command(self, ctx: click.Context, name: str) -> click.Command | None:
+        if name not in COMMANDS:
+            return None
+        target, _ = COMMANDS[name]
+        module_name, attribute = target.split(":")
+        return getattr(importlib.import_module(module_name), attribute)
+
+    def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
+        # Help from the table, so `asa --help` imports nothing heavy.
+        rows = [(name, COMMANDS[name][1]) for name in self.list_commands(ctx)]
+        with formatter.section("Commands"):
+            formatter.write_dl(rows)
+
+
+@click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(__version__, prog_name="asa")
+def cli() -> None:
+    """asa-study: run and analyse user studies of shared autonomy in mobile-robot
+    teleoperation.
+
+    Run `asa COMMAND --help` for the details of each job.
+    """
+
+
+def _one_line(error: BaseException) -> str:
+    text = str(error) or error.__class__.__name__
+    if isinstance(error, FileNotFoundError) and error.filename:
+        text = f"{error.filename}: no such file"
+    return " ".join(text.split())
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Entry point of the ``asa`` console script."""
+    debug = os.environ.get("ASA_DEBUG") == "1"
+    try:
+        cli.main(args=argv, prog_name="asa", standalone_mode=False)
+    except click.exceptions.Abort:
+        click.echo("asa: aborted", err=True)
+        sys.exit(130)
+    except click.ClickException as error:
+        # Bad options or arguments: click's own message, on one line.
+        click.echo(f"asa: {' '.join(error.format_message().split())}", err=True)
+        sys.exit(2)
+    except (
+        ValueError,
+        TypeError,
+        FileNotFoundError,
+        IsADirectoryError,
+        NotADirectoryError,
+    ) as error:
+        if debug:
+            raise
+        click.echo(f"asa: error: {_one_line(error)}", err=True)
+        sys.exit(2)
+    except KeyboardInterrupt:
+        click.echo("asa: interrupted", err=True)
+        sys.exit(130)
