@@ -1,0 +1,279 @@
+"""The study database: SQLAlchemy 2.0 ORM models, one module, versioned.
+
+Nothing else in the platform writes SQL. SQLite (one file per study, WAL mode,
+foreign keys on) by default; any SQLAlchemy URL for a server database.
+
+Tables (DESIGN.md, "Data"):
+
+- ``meta``: key/value, holds ``schema_version``.
+- ``study``: name, protocol text and its SHA-256, platform version, seed.
+- ``participant``: pseudonymous code, human or synthetic (with the synthetic
+  parameters), order index and mode permutation.
+- ``session``: one run of ``asa run``/``asa synth`` for a participant; a second
+  session for the same participant is refused unless forced, and the force is
+  recorded here (``forced``, ``note``), never silently.
+- ``trial``: phase, mode, ordinal, scenario, seed, status
+  (running/completed/aborted), times, and the outcome.
+- ``sample``: one row per control tick.
+- ``event``: collisions, region entry/exit, questions, answers, inspection,
+  dock, input device lost/regained, pauses, with a JSON ``detail``.
+- ``question``: one row per secondary-task question (shown, answered or timed
+  out). DESIGN.md lists questions only as events; a row per question makes the
+  analysis of answer times and errors a plain query, and the events stay too.
+- ``response``: questionnaire answers (instrument, item, value), including the
+  NASA-TLX pairwise choices (item ``pair:<a>|<b>``, text = chosen subscale).
+
+Integrity rules enforced by the session engine and checked by ``asa db check``:
+a trial row exists from its first tick with status ``running``; samples are
+flushed in batches at least once a second; completion is one transaction; a
+resumed session marks its running trial ``aborted`` and runs it again.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+from pathlib import Path
+from typing import Any
+
+from sqlalchemy import (
+    JSON,
+    Boolean,
+    DateTime,
+    Float,
+    ForeignKey,
+    Index,
+    Integer,
+    String,
+    Text,
+    UniqueConstraint,
+    create_engine,
+    event,
+    inspect,
+    select,
+)
+from sqlalchemy.engine import Engine
+from sqlalchemy.orm import DeclarativeBase, Mapped, Session, mapped_column, relationship
+
+SCHEMA_VERSION = 1
+
+TRIAL_PHASES = ("training", "practice", "baseline", "main")
+TRIAL_STATUSES = ("running", "completed", "aborted")
+PARTICIPANT_KINDS = ("human", "synthetic", "scripted")
+
+
+def _now() -> dt.datetime:
+    return dt.datetime.now(dt.UTC)
+
+
+class Base(DeclarativeBase):
+    type_annotation_map = {dict[str, Any]: JSON, list[Any]: JSON}
+
+
+class Meta(Base):
+    __tablename__ = "meta"
+    key: Mapped[str] = mapped_column(String(64), primary_key=True)
+    value: Mapped[str] = mapped_column(Text)
+
+
+class Study(Base):
+    __tablename__ = "study"
+    id: Mapped[int] = mapped_column(primary_key=True)
+    name: Mapped[str] = mapped_column(String(200))
+    protocol_text: Mapped[str] = mapped_column(Text)
+    protocol_sha256: Mapped[str] = mapped_column(String(64))
+    platform_version: Mapped[str] = mapped_column(String(64))
+    seed: Mapped[int] = mapped_column(Integer)
+    created_at: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True), default=_now)
+
+    participants: Mapped[list[Participant]] = relationship(back_populates="study")
+
+
+class Participant(Base):
+    __tablename__ = "participant"
+    __table_args__ = (UniqueConstraint("study_id", "code"),)
+    id: Mapped[int] = mapped_column(primary_key=True)
+    study_id: Mapped[int] = mapped_column(ForeignKey("study.id"))
+    code: Mapped[str] = mapped_column(String(64))  # pseudonymous, e.g. "P01"
+    kind: Mapped[str] = mapped_column(String(16))  # PARTICIPANT_KINDS
+    parameters: Mapped[dict[str, Any]] = mapped_column(default=dict)  # synthetic model params
+    order_index: Mapped[int] = mapped_column(Integer)  # row of the counterbalancing scheme
+    mode_order: Mapped[list[Any]] = mapped_column(
+        default=list
+    )  # e.g. ["manual", "reactive_bn", ...]
+    seed: Mapped[int] = mapped_column(Integer)
+    created_at: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True), default=_now)
+
+    study: Mapped[Study] = relationship(back_populates="participants")
+    sessions: Mapped[list[SessionRow]] = relationship(back_populates="participant")
+    trials: Mapped[list[Trial]] = relationship(back_populates="participant")
+
+
+class SessionRow(Base):
+    """One run of a participant's session (named ``SessionRow`` so as not to shadow the ORM
+    ``Session``)."""
+
+    __tablename__ = "session"
+    id: Mapped[int] = mapped_column(primary_key=True)
+    participant_id: Mapped[int] = mapped_column(ForeignKey("participant.id"))
+    started_at: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True), default=_now)
+    ended_at: Mapped[dt.datetime | None] = mapped_column(DateTime(timezone=True))
+    status: Mapped[str] = mapped_column(String(16), default="running")  # running/completed/aborted
+    resumed: Mapped[bool] = mapped_column(Boolean, default=False)
+    forced: Mapped[bool] = mapped_column(Boolean, default=False)
+    note: Mapped[str] = mapped_column(Text, default="")
+
+    participant: Mapped[Participant] = relationship(back_populates="sessions")
+
+
+class Trial(Base):
+    __tablename__ = "trial"
+    __table_args__ = (Index("ix_trial_participant", "participant_id", "phase", "ordinal"),)
+    id: Mapped[int] = mapped_column(primary_key=True)
+    participant_id: Mapped[int] = mapped_column(ForeignKey("participant.id"))
+    session_id: Mapped[int] = mapped_column(ForeignKey("session.id"))
+    phase: Mapped[str] = mapped_column(String(16))  # TRIAL_PHASES
+    mode: Mapped[str] = mapped_column(String(32))  # "" for the baseline block
+    ordinal: Mapped[int] = mapped_column(Integer)  # position within its phase, from 0
+    attempt: Mapped[int] = mapped_column(Integer, default=0)  # repeats (practice, resume)
+    scenario: Mapped[str] = mapped_column(String(200))
+    seed: Mapped[int] = mapped_column(Integer)
+    status: Mapped[str] = mapped_column(String(16), default="running")  # TRIAL_STATUSES
+    started_at: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True), default=_now)
+    ended_at: Mapped[dt.datetime | None] = mapped_column(DateTime(timezone=True))
+    # outcome, set in the completing transaction
+    completed_task: Mapped[bool | None] = mapped_column(Boolean)  # False on timeout
+    completion_time_s: Mapped[float | None] = mapped_column(Float)
+    collisions: Mapped[int | None] = mapped_column(Integer)
+    score: Mapped[float | None] = mapped_column(Float)  # time + penalty per collision
+    path_length_m: Mapped[float | None] = mapped_column(Float)
+    clearance_mean_m: Mapped[float | None] = mapped_column(Float)
+    clearance_min_m: Mapped[float | None] = mapped_column(Float)
+    tick_jitter_ms: Mapped[float | None] = mapped_column(Float)  # p99 |period - dt|, humans
+    recording_path: Mapped[str] = mapped_column(Text, default="")
+    outcome: Mapped[dict[str, Any]] = mapped_column(default=dict)  # further metrics
+
+    participant: Mapped[Participant] = relationship(back_populates="trials")
+
+
+class Sample(Base):
+    __tablename__ = "sample"
+    __table_args__ = (Index("ix_sample_trial_tick", "trial_id", "tick"),)
+    id: Mapped[int] = mapped_column(primary_key=True)
+    trial_id: Mapped[int] = mapped_column(ForeignKey("trial.id"))
+    tick: Mapped[int] = mapped_column(Integer)
+    t: Mapped[float] = mapped_column(Float)  # [s] simulated time
+    x: Mapped[float] = mapped_column(Float)  # true pose [m, m, rad]
+    y: Mapped[float] = mapped_column(Float)
+    yaw: Mapped[float] = mapped_column(Float)
+    u_x: Mapped[float] = mapped_column(Float)  # joystick command [m/s, m/s, rad/s]
+    u_y: Mapped[float] = mapped_column(Float)
+    u_w: Mapped[float] = mapped_column(Float)
+    v_x: Mapped[float] = mapped_column(Float)  # command sent to the robot
+    v_y: Mapped[float] = mapped_column(Float)
+    v_w: Mapped[float] = mapped_column(Float)
+    beta: Mapped[float] = mapped_column(Float)
+    label: Mapped[str] = mapped_column(String(32), default="")  # situation or task
+    target: Mapped[str] = mapped_column(String(64), default="")  # recognised component
+    min_clearance_m: Mapped[float] = mapped_column(Float)
+    in_region: Mapped[bool] = mapped_column(Boolean)
+    true_task: Mapped[str] = mapped_column(String(32), default="")  # synthetic ground truth
+    true_target: Mapped[str] = mapped_column(String(64), default="")
+
+
+class Event(Base):
+    __tablename__ = "event"
+    __table_args__ = (Index("ix_event_trial", "trial_id", "t"),)
+    id: Mapped[int] = mapped_column(primary_key=True)
+    session_id: Mapped[int] = mapped_column(ForeignKey("session.id"))
+    trial_id: Mapped[int | None] = mapped_column(ForeignKey("trial.id"))
+    t: Mapped[float] = mapped_column(Float)  # [s] trial time (session time outside trials)
+    kind: Mapped[str] = mapped_column(String(32))
+    detail: Mapped[dict[str, Any]] = mapped_column(default=dict)
+    created_at: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True), default=_now)
+
+
+class Question(Base):
+    __tablename__ = "question"
+    __table_args__ = (Index("ix_question_trial", "trial_id"),)
+    id: Mapped[int] = mapped_column(primary_key=True)
+    trial_id: Mapped[int] = mapped_column(ForeignKey("trial.id"))
+    block: Mapped[int] = mapped_column(Integer)
+    index: Mapped[int] = mapped_column(Integer)  # within the block
+    text: Mapped[str] = mapped_column(String(64))
+    shown_is_correct: Mapped[bool] = mapped_column(Boolean)
+    shown_t: Mapped[float] = mapped_column(Float)
+    answered_t: Mapped[float | None] = mapped_column(Float)
+    response: Mapped[bool | None] = mapped_column(Boolean)  # said "correct"?; None = timeout
+    correct: Mapped[bool] = mapped_column(Boolean)  # False for a wrong answer or a timeout
+    answer_time_s: Mapped[float | None] = mapped_column(Float)
+
+
+class Response(Base):
+    __tablename__ = "response"
+    __table_args__ = (Index("ix_response_participant", "participant_id", "instrument"),)
+    id: Mapped[int] = mapped_column(primary_key=True)
+    participant_id: Mapped[int] = mapped_column(ForeignKey("participant.id"))
+    trial_id: Mapped[int | None] = mapped_column(ForeignKey("trial.id"))  # None: per session
+    instrument: Mapped[str] = mapped_column(String(32))  # "nasa_tlx", "experience", ...
+    item: Mapped[str] = mapped_column(String(64))
+    value: Mapped[float | None] = mapped_column(Float)
+    text: Mapped[str] = mapped_column(Text, default="")
+    created_at: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True), default=_now)
+
+
+# ------------------------------------------------------------------------- engine
+
+
+def database_url(db: str | Path) -> str:
+    """A path becomes a SQLite URL; anything with ``://`` is taken as a SQLAlchemy URL."""
+    text = str(db)
+    return text if "://" in text else f"sqlite:///{Path(text).resolve()}"
+
+
+def _sqlite_pragmas(dbapi_connection: Any, _record: Any) -> None:
+    cursor = dbapi_connection.cursor()
+    cursor.execute("PRAGMA journal_mode=WAL")
+    cursor.execute("PRAGMA synchronous=NORMAL")  # WAL + NORMAL: durable at checkpoints, fast
+    cursor.execute("PRAGMA foreign_keys=ON")
+    cursor.close()
+
+
+def open_database(db: str | Path, *, create: bool = True) -> Engine:
+    """Open (and with ``create`` make) a study database and check it is ours.
+
+    Raises ``ValueError`` naming the database when it exists but was not made by this
+    platform, or by a newer schema version.
+    """
+    url = database_url(db)
+    if url.startswith("sqlite:///") and not create and not Path(url[10:]).exists():
+        raise FileNotFoundError(2, "No such file", url[10:])
+    engine = create_engine(url)
+    if engine.dialect.name == "sqlite":
+        event.listen(engine, "connect", _sqlite_pragmas)
+    tables = set(inspect(engine).get_table_names())
+    ours = set(Base.metadata.tables)
+    if tables and not {"meta", "study"} <= tables:
+        raise ValueError(f"{db}: not an asa-study database (tables: {', '.join(sorted(tables))})")
+    if tables:
+        with Session(engine) as s:
+            row = s.get(Meta, "schema_version")
+        if row is None or not row.value.isdigit():
+            raise ValueError(
+                f"{db}: field 'meta.schema_version' is missing; not an asa-study database"
+            )
+        if int(row.value) > SCHEMA_VERSION:
+            raise ValueError(
+                f"{db}: field 'meta.schema_version' is {row.value}; this platform reads up to "
+                f"{SCHEMA_VERSION}, upgrade asa-study"
+            )
+    if create and not ours <= tables:
+        Base.metadata.create_all(engine)
+        with Session(engine) as s, s.begin():
+            if s.get(Meta, "schema_version") is None:
+                s.add(Meta(key="schema_version", value=str(SCHEMA_VERSION)))
+    return engine
+
+
+def get_study(session: Session) -> Study | None:
+    """The study row of a database (one study per database), or None if empty."""
+    return session.scalars(select(Study).order_by(Study.id)).first()
