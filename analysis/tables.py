@@ -1,0 +1,333 @@
+"""Long-format CSV in, readable statistics out: the I/O edge of :mod:`analysis.stats`.
+
+:func:`read_long_csv` validates a CSV for ``asa stats`` and names the file, the column and the
+line of anything wrong; :func:`format_p`, :func:`apa_anova` and :func:`format_summary` turn
+the object of :func:`analysis.stats.analyse` into APA-style text (thesis Sec. 7.6.2 reports
+"p < 0.001"; the issue asks for "F(2, 34) = 25.76, p < .001, eta_p^2 = .60").
+
+Decisions where the spec is silent
+----------------------------------
+- Every column is read as text; the dv is then converted, so an id such as ``007`` stays
+  ``"007"``. Empty cells and the usual missing markers (``NA``, ``NaN``, ``null``...) in the
+  dv are missing values (the subject is later dropped listwise); any other non-number is an
+  error naming the first offending line (physical line of the file, header = line 1).
+  Spaces after the delimiter are ignored; blank lines are skipped.
+- An empty subject or level cell is an error (a row nobody can be attributed to).
+- A missing file raises ``FileNotFoundError`` (the CLI prints "FILE: no such file");
+  everything else is a ``ValueError`` starting with the file name.
+- APA style: p with three decimals and no leading zero, "p < .001" below .001; F with two
+  decimals; eta squared with two decimals and no leading zero. When the gate used the
+  Greenhouse-Geisser p, :func:`apa_anova` reports the eps-scaled dfs with two decimals.
+"""
+
+from __future__ import annotations
+
+import errno
+import math
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+__all__ = ["apa_anova", "format_p", "format_summary", "read_long_csv"]
+
+
+def read_long_csv(path: str | Path, *, dv: str, within: str, subject: str) -> pd.DataFrame:
+    """Read and validate a long-format CSV: one row per subject and level.
+
+    Parameters
+    ----------
+    path : str or Path
+        The CSV file (comma-separated, UTF-8, header row).
+    dv, within, subject : str
+        Columns holding the dependent variable, the within-subject factor and the subject id.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Columns ``subject`` and ``within`` as str, ``dv`` as float64 (NaN = missing), in file
+        order, under their original names; the index is the file's line number.
+
+    Raises
+    ------
+    FileNotFoundError
+        The file does not exist.
+    ValueError
+        ``"FILE: ..."``: not a readable CSV, a column missing (listing the available ones),
+        the same column given twice, an empty id cell, a non-numeric or infinite dv value
+        (naming its line and value), or fewer than two levels.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(errno.ENOENT, "no such file", str(path))
+    if path.is_dir():
+        raise ValueError(f"{path}: is a directory, expected a CSV file")
+    try:
+        with warnings.catch_warnings():
+            # pandas would otherwise turn extra leading fields into an index, or drop them.
+            warnings.simplefilter("error", pd.errors.ParserWarning)
+            raw = pd.read_csv(
+                path,
+                dtype=str,
+                index_col=False,
+                skip_blank_lines=False,
+                skipinitialspace=True,
+                encoding="utf-8",
+            )
+    except pd.errors.ParserWarning:
+        raise ValueError(
+            f"{path}: not a valid CSV (a row has more fields than the header)"
+        ) from None
+    except UnicodeDecodeError as error:
+        raise ValueError(f"{path}: not a UTF-8 text file ({error.reason})") from None
+    except pd.errors.EmptyDataError:
+        raise ValueError(f"{path}: empty file; expected a header row naming the columns") from None
+    except pd.errors.ParserError as error:
+        raise ValueError(f"{path}: not a valid CSV ({' '.join(str(error).split())})") from None
+
+    raw.index = pd.RangeIndex(2, len(raw) + 2, name="line")  # header is line 1
+    raw = raw.dropna(how="all")  # blank lines
+    columns = [str(c) for c in raw.columns]
+    available = ", ".join(repr(c) for c in columns) or "none"
+    roles = {"dv": dv, "within": within, "subject": subject}
+    for role, column in roles.items():
+        if column not in columns:
+            raise ValueError(
+                f"{path}: column {column!r} ({role}) not found; available columns: {available}"
+            )
+    if len(set(roles.values())) < 3:
+        raise ValueError(
+            f"{path}: --dv, --within and --subject must name three different columns, "
+            f"got {dv!r}, {within!r}, {subject!r}"
+        )
+
+    for column in (subject, within):
+        empty = raw[column].isna() | (raw[column].str.strip() == "")
+        if empty.any():
+            line = int(raw.index[np.flatnonzero(empty.to_numpy())[0]])
+            raise ValueError(f"{path}: column {column!r} line {line}: empty cell")
+    text = raw[dv].str.strip()
+    values = pd.to_numeric(text, errors="coerce")
+    bad = values.isna() & text.notna() & (text != "")
+    if bad.any():
+        line = int(raw.index[np.flatnonzero(bad.to_numpy())[0]])
+        raise ValueError(
+            f"{path}: column {dv!r} line {line}: {raw.loc[line, dv]!r} is not a number "
+            f"(leave the cell empty or write NA for a missing value)"
+        )
+    infinite = np.isinf(values.to_numpy(dtype=float))
+    if infinite.any():
+        line = int(raw.index[np.flatnonzero(infinite)[0]])
+        raise ValueError(f"{path}: column {dv!r} line {line}: {raw.loc[line, dv]!r} is not finite")
+
+    levels = list(pd.unique(raw[within].str.strip()))
+    if len(levels) < 2:
+        found = ", ".join(repr(level) for level in levels) or "none"
+        raise ValueError(
+            f"{path}: column {within!r}: only {len(levels)} level ({found}); a "
+            f"repeated-measures ANOVA needs at least two"
+        )
+    return pd.DataFrame(
+        {
+            subject: raw[subject].str.strip(),
+            within: raw[within].str.strip(),
+            dv: values.astype(float),
+        },
+        index=raw.index,
+    )
+
+
+# --------------------------------------------------------------------------------------------
+# Text
+# --------------------------------------------------------------------------------------------
+
+
+def _no_leading_zero(text: str) -> str:
+    if text.startswith("0."):
+        return text[1:]
+    if text.startswith("-0."):
+        return "-" + text[2:]
+    return text
+
+
+def format_p(p: float | None) -> str:
+    """APA p: ``"< .001"``, ``"= .026"``, or ``"n/a"`` when undefined (None or NaN)."""
+    if p is None or not math.isfinite(p):
+        return "n/a"
+    if p < 0.001:
+        return "< .001"
+    return "= " + _no_leading_zero(f"{p:.3f}")
+
+
+def _num(value: float | None, digits: int = 2, *, zero: bool = True) -> str:
+    if value is None or not math.isfinite(value):
+        return "n/a"
+    text = f"{value:.{digits}f}"
+    return text if zero else _no_leading_zero(text)
+
+
+def _uses_gg(result: dict) -> bool:
+    """Whether the gate took the Greenhouse-Geisser p (and eps < 1 makes it differ)."""
+    gg = result["greenhouse_geisser"]
+    return (
+        result["p_gate"] is not None
+        and gg["p"] is not None
+        and result["p_gate"] == gg["p"]
+        and gg["eps"] is not None
+        and gg["eps"] < 1.0
+        and gg["p"] != result["anova"]["p_unc"]
+    )
+
+
+def apa_anova(result: dict) -> str:
+    """The APA line of one analysis, e.g. ``"F(2, 34) = 25.76, p < .001, eta_p^2 = .60"``.
+
+    Parameters
+    ----------
+    result : dict
+        The object of :func:`analysis.stats.analyse`.
+
+    Returns
+    -------
+    str
+        With the Greenhouse-Geisser dfs (eps-scaled, two decimals) and p when the gate used
+        them, marked "(Greenhouse-Geisser)"; "F undefined (SS_error = 0)" when F is null.
+    """
+    anova = result["anova"]
+    df1, df2 = anova["df_effect"], anova["df_error"]
+    if anova["F"] is None:
+        return f"F({df1}, {df2}) undefined (SS_error = 0)"
+    if _uses_gg(result):
+        eps = result["greenhouse_geisser"]["eps"]
+        dfs, suffix = f"{eps * df1:.2f}, {eps * df2:.2f}", " (Greenhouse-Geisser)"
+    else:
+        dfs, suffix = f"{df1}, {df2}", ""
+    return (
+        f"F({dfs}) = {anova['F']:.2f}, p {format_p(result['p_gate'])}, "
+        f"eta_p^2 = {_num(anova['np2'], zero=False)}{suffix}"
+    )
+
+
+def _table(header: list[str], rows: list[list[str]], *, left: int = 1) -> list[str]:
+    """Aligned text columns; the first ``left`` columns (labels) flush left, numbers right."""
+    widths = [max(len(cell) for cell in column) for column in zip(header, *rows, strict=True)]
+    lines = []
+    for row in [header, *rows]:
+        cells = [
+            cell.ljust(width) if i < left else cell.rjust(width)
+            for i, (cell, width) in enumerate(zip(row, widths, strict=True))
+        ]
+        lines.append("  " + "  ".join(cells).rstrip())
+    return lines
+
+
+def _pair_table(pairs: list[dict]) -> list[str]:
+    rows = [
+        [
+            pair["a"],
+            pair["b"],
+            _num(pair["diff"], 3),
+            _num(pair["t"], 2),
+            str(pair["df"]),
+            format_p(pair["p"]).replace("= ", ""),
+            f"[{_num(pair['ci_low'], 3)}, {_num(pair['ci_high'], 3)}]",
+            "*" if pair["significant"] else "",
+        ]
+        for pair in pairs
+    ]
+    return _table(["a", "b", "diff (a-b)", "t", "df", "p", "CI", "sig"], rows, left=2)
+
+
+def format_summary(
+    result: dict,
+    *,
+    dv: str = "dv",
+    within: str = "within",
+    alpha: float = 0.05,
+    gate: str = "auto",
+) -> str:
+    """A plain-text report of one analysis: descriptives, ANOVA, sphericity, GG, post hoc.
+
+    Parameters
+    ----------
+    result : dict
+        The object of :func:`analysis.stats.analyse`.
+    dv, within : str
+        Names shown in the headings.
+    alpha : float
+        The significance level the analysis used (for the CI level and the gate line).
+    gate : str
+        The gate rule the analysis used.
+
+    Returns
+    -------
+    str
+        Several lines, no trailing newline.
+    """
+    levels = result["levels"]
+    dropped = result["dropped_subjects"]
+    out = [
+        f"{dv} by {within}: {result['n_subjects']} subjects, {len(levels)} levels"
+        + (f" ({len(dropped)} dropped: {', '.join(dropped)})" if dropped else ""),
+        "",
+        "Descriptives",
+    ]
+    rows = [
+        [
+            level,
+            str(d["n"]),
+            _num(d["mean"], 3),
+            _num(d["sd"], 3),
+            _num(d["se"], 3),
+        ]
+        for level, d in result["descriptives"].items()
+    ]
+    out += _table([within, "n", "mean", "sd", "se"], rows)
+
+    anova, sph, gg = result["anova"], result["sphericity"], result["greenhouse_geisser"]
+    out += [
+        "",
+        "Repeated-measures ANOVA",
+        f"  {apa_anova(result)}, eta_G^2 = {_num(anova['ng2'], zero=False)}",
+        f"  uncorrected: F({anova['df_effect']}, {anova['df_error']}) = {_num(anova['F'])}, "
+        f"p {format_p(anova['p_unc'])}; SS_effect = {_num(anova['ss_effect'], 4)}, "
+        f"SS_error = {_num(anova['ss_error'], 4)}, MS_error = {_num(anova['ms_error'], 4)}",
+    ]
+    if sph["W"] is None:
+        out.append("  Mauchly's test: undefined")
+    else:
+        verdict = "violated" if sph["violated"] else "not violated"
+        out.append(
+            f"  Mauchly's test: W = {_num(sph['W'], 3)}, chi2({sph['dof']}) = "
+            f"{_num(sph['chi2'])}, p {format_p(sph['p'])} (sphericity {verdict})"
+        )
+    out.append(f"  Greenhouse-Geisser: eps = {_num(gg['eps'], 3)}, p {format_p(gg['p'])}")
+    verdict = "significant" if result["significant"] else "not significant"
+    out.append(
+        f"  gate ({gate}): p {format_p(result['p_gate'])} -> {verdict} at alpha = "
+        f"{_no_leading_zero(f'{alpha:g}')}"
+    )
+
+    posthoc = result["posthoc"]
+    confidence = f"{100 * (1 - alpha):g}% CI"
+    if posthoc["ran"]:
+        n = result["n_subjects"]
+        out += [
+            "",
+            f"Fisher's LSD, paired (each pair's own differences, df = {n - 1}; {confidence})",
+        ]
+        out += _pair_table(posthoc["lsd_paired"])
+        out += [
+            "",
+            f"Fisher's LSD, pooled (MS_error = {_num(anova['ms_error'], 4)}, "
+            f"df = {anova['df_error']}; {confidence})",
+        ]
+        out += _pair_table(posthoc["lsd_pooled"])
+    else:
+        out += ["", "Post hoc: not run (the gate did not pass)"]
+
+    if result["warnings"]:
+        out += ["", "Warnings"]
+        out += [f"  - {warning}" for warning in result["warnings"]]
+    return "\n".join(out)

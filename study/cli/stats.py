@@ -1,0 +1,70 @@
+"""``asa stats``: repeated-measures statistics for any long-format CSV.
+
+A thin shell over :func:`analysis.tables.read_long_csv`, :func:`analysis.stats.analyse` and
+:func:`analysis.tables.format_summary`. Errors about the data name the file; with ``--json``
+stdout carries the one object and nothing else (warnings also go to stderr).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import click
+
+from analysis.stats import GATES, analyse
+from analysis.tables import format_summary, read_long_csv
+
+
+@click.command()
+@click.option(
+    "--csv",
+    "csv_path",
+    required=True,
+    type=click.Path(path_type=Path),
+    help="Long-format CSV: one row per subject and level.",
+)
+@click.option("--dv", required=True, help="Column of the dependent variable (numeric).")
+@click.option("--within", required=True, help="Column of the within-subject factor.")
+@click.option("--subject", required=True, help="Column of the subject id.")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object and nothing else.")
+@click.option(
+    "--alpha",
+    type=click.FloatRange(0.0, 1.0, min_open=True, max_open=True),
+    default=0.05,
+    show_default=True,
+    help="Significance level of the ANOVA gate and the LSD pairs (CI level 1 - alpha).",
+)
+@click.option(
+    "--gate",
+    type=click.Choice(GATES),
+    default="auto",
+    show_default=True,
+    help="Which p gates the post-hoc tests: auto = Greenhouse-Geisser when Mauchly's p < .05.",
+)
+def stats(
+    csv_path: Path,
+    dv: str,
+    within: str,
+    subject: str,
+    as_json: bool,
+    alpha: float,
+    gate: str,
+) -> None:
+    """Repeated-measures ANOVA, Mauchly's test, Greenhouse-Geisser, Fisher's LSD (paired and
+    pooled) and descriptives of DV by WITHIN for any long-format CSV.
+
+    Subjects lacking a level are dropped (named in a warning); several rows for one subject
+    and level are averaged.
+    """
+    frame = read_long_csv(csv_path, dv=dv, within=within, subject=subject)
+    try:
+        result = analyse(frame, dv=dv, within=within, subject=subject, alpha=alpha, gate=gate)
+    except ValueError as error:
+        raise ValueError(f"{csv_path}: {error}") from error
+    if as_json:
+        for warning in result["warnings"]:
+            click.echo(f"asa: warning: {warning}", err=True)
+        click.echo(json.dumps(result, allow_nan=False))
+    else:
+        click.echo(format_summary(result, dv=dv, within=within, alpha=alpha, gate=gate))
