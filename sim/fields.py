@@ -98,12 +98,17 @@ class FieldReader:
             and all(
                 isinstance(p, list)
                 and len(p) == 2
-                and all(isinstance(v, int | float) and not isinstance(v, bool) for v in p)
+                and all(
+                    isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+                    for v in p
+                )
                 for p in value
             )
         )
         if not ok:
-            raise self.fail(key, f"must be a list of at least {minimum} [x, y] points")
+            raise self.fail(
+                key, f"must be a list of at least {minimum} [x, y] points of finite numbers"
+            )
         return np.array(value, dtype=float).reshape(-1, 2)
 
     def table(self, key: str) -> dict[str, Any] | None:
