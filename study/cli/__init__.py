@@ -26,6 +26,7 @@ from study import __version__
 COMMANDS: dict[str, tuple[str, str]] = {
     "scenario": ("study.cli.scenario:scenario", "Inspect scenarios: components, map, PNG."),
     "bench": ("study.cli.bench:bench", "Measure the performance budgets (one JSON object)."),
+    "pilot": ("study.cli.pilot:pilot", "The main job: a synthetic pilot study (not built yet)."),
     "stats": (
         "study.cli.stats:stats",
         "Repeated-measures ANOVA, sphericity and LSD for any long CSV.",
