@@ -1,0 +1,675 @@
+"""The simulated world: a pybullet scene built from a scenario, a holonomic robot in it,
+its sensors and its collisions (thesis Sec. 7.6.1.1; spec section 7).
+
+Frames
+    The map frame is the scenario's (x right, y up, yaw counter-clockwise from +x,
+    z up from the floor). The robot frame has x forward, y left, origin at the
+    centre of the footprint. Commands and velocities are robot-frame
+    ``(v_x [m/s], v_y [m/s], omega [rad/s])``.
+
+Robot model
+    A fixed-base pybullet multibody with a prismatic joint along map x, a
+    prismatic joint along map y and a revolute joint about z (two massless dummy
+    links), the last link the robot's box (``length x width x height``, ``mass``).
+    The joint positions *are* the true pose. Each physics substep the held
+    robot-frame command is turned into map-frame joint velocities with the heading
+    halfway through the substep, so a command is followed in the robot's own frame
+    while it turns (a constant command drives a circular arc). The command is first
+    clipped to ``max_speed`` (norm of (v_x, v_y)) and ``max_yaw_rate`` (thesis
+    7.6.1.1: 1.0 m/s, 1.2 rad/s); the velocity set-point then follows it rate
+    limited, ``max_accel`` on the translational vector and ``max_yaw_accel`` on
+    omega. VELOCITY_CONTROL motors with a finite force (``motor_force_factor`` times
+    what the acceleration limit needs) drive the joints, so an obstacle pushes back
+    and the box cannot pass through it; link damping and joint damping are zero,
+    gravity is irrelevant (no vertical freedom) and off.
+    The floor is visual only, so it adds no friction. The static scene is built
+    from primitive shapes (boxes, upright cylinders), grouped into compound bodies
+    of at most 16 so that the physics step does not pay for every element.
+
+Contacts
+    A collision episode starts at the first physics substep at which the robot's
+    box touches any scene element (a contact point closer than
+    ``contact_tolerance_m``) and ends once it has touched nothing for
+    ``contact_debounce_s``; a graze that flickers within the debounce, a scrape
+    along a wall or a push into a corner is one episode. The episode keeps the time,
+    the map-frame point on the obstacle and the name of the element touched first,
+    the element of the touched compound nearest that point (table parts are
+    ``table.leg0``..``table.leg3`` and ``table.top``);
+    ``t_end`` is the last time the robot touched, filled in once the debounce has
+    passed. Counting contact with anything, not per element, is a decision of this
+    module: one crash into a corner costs one collision penalty, not two.
+
+Sensors (noise from the world's own generator, seeded by ``seed``; same seed, same
+commands and the same calls give an identical run)
+    * Lasers, per ``scenario.robot.lasers``: beams evenly spaced over the field of
+      view at the mount pose, cast horizontally at the laser's height from the true
+      pose, the robot itself never seen; range + N(0, sigma^2), clipped to
+      [min_range, max_range]; exactly ``max_range`` where nothing is hit. The
+      default caster is exact 2D geometry (:mod:`sim.sensors`); pybullet's
+      ``rayTestBatch`` is available as ``laser_backend="pybullet"``.
+    * Pose estimate: true pose + N(0, diag(s_xy^2, s_xy^2, s_yaw^2)),
+      ``robot.pose_sigma = (s_xy, s_yaw)``. It stands for a localisation system on
+      the given, complete map (the thesis localised the robot on a prebuilt SLAM
+      map, Sec. 7.1, the same map the participants saw, Sec. 7.6.1.1); the noise is
+      independent per tick, not a drift.
+    * IMU: yaw rate + N(0, s_g^2) and robot-frame linear acceleration + N(0, s_a^2)
+      per axis, ``robot.imu_sigma = (s_g, s_a)``; the acceleration is the finite
+      difference of the true map-frame velocity over the last tick, rotated into
+      the robot frame (an accelerometer's reading without gravity).
+    * Velocity estimate: true (v_x, v_y) + N(0, ``velocity_sigma``^2) per axis, as
+      from wheel odometry, and omega equal to the IMU's noisy yaw rate.
+    * Semantic components: derived once from the scenario (``sim.semantics``), put
+      into the robot frame with the *estimated* pose.
+    * Camera: only on :meth:`World.camera_image`, a pinhole at ``robot.camera``
+      rendered by pybullet's ER_TINY_RENDERER from the true pose.
+
+Timing: one control tick is ``dt`` (20 Hz); the physics runs
+``round(dt * physics_hz)`` substeps of equal length per tick.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from types import TracebackType
+
+import numpy as np
+import pybullet as p
+
+from sim.scenario import LaserSpec, Scenario
+from sim.sensors import CrossSection, Solid, cast, cross_section, scene_solids
+from sim.types import Contact, ImuReading, LaserScan, Observation, Pose2D, SemanticComponent
+
+LASER_BACKENDS = ("analytic", "pybullet")
+
+# Collision filter groups: the scene collides with the robot, the robot only with the
+# scene; pybullet's ray test (group 1 by default) then hits the scene but not the robot.
+_SCENE_GROUP, _ROBOT_GROUP = 1, 2
+_JOINTS = [0, 1, 2]  # the robot's prismatic x, prismatic y and revolute yaw joints
+_FLOOR_RGBA = [0.78, 0.78, 0.75, 1.0]
+_ROBOT_RGBA = [0.2, 0.3, 0.55, 1.0]
+_CAMERA_NEAR_M = 0.05
+_COMPOUND_MAX = 16  # shapes per pybullet compound (more: cut silently, or a crash)
+
+
+@dataclass(frozen=True, slots=True)
+class WorldSettings:
+    """How the world is simulated (not what it contains: that is the scenario)."""
+
+    dt: float = 0.05  # [s] control tick (20 Hz)
+    physics_hz: int = 240  # physics substeps per second (rounded to whole substeps per tick)
+    contact_debounce_s: float = 0.3  # [s] no contact this long ends a collision episode
+    contact_tolerance_m: float = 0.001  # [m] contact points closer than this count as touch
+    motor_force_factor: float = 3.0  # motor force / (mass * max_accel); > 1 to track the ramp
+    velocity_sigma: float = 0.01  # [m/s] noise of the odometry's (v_x, v_y)
+    laser_backend: str = "analytic"  # "analytic" (exact 2D caster) or "pybullet" (rayTestBatch)
+    gui: bool = False  # pybullet's own window (one per process); DIRECT otherwise
+
+    def __post_init__(self) -> None:
+        for name in ("dt", "physics_hz", "contact_tolerance_m", "motor_force_factor"):
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and value > 0):
+                raise ValueError(f"WorldSettings: field '{name}': must be positive, got {value!r}")
+        if not (self.contact_debounce_s >= 0 and self.velocity_sigma >= 0):
+            raise ValueError(
+                "WorldSettings: fields 'contact_debounce_s' and 'velocity_sigma': "
+                "must be zero or positive"
+            )
+        if self.laser_backend not in LASER_BACKENDS:
+            raise ValueError(
+                f"WorldSettings: field 'laser_backend': must be one of "
+                f"{', '.join(LASER_BACKENDS)}, got {self.laser_backend!r}"
+            )
+
+
+@dataclass(frozen=True, slots=True)
+class _Beams:
+    """One laser's beam directions, precomputed once."""
+
+    angles: np.ndarray  # (n,) [rad] beam directions in the robot frame, read-only
+    origin: np.ndarray  # (2,) [m] mount position in the robot frame, read-only
+    step: float  # [rad] between beams
+
+
+@dataclass(frozen=True, slots=True)
+class _Fans:
+    """Lasers with the same height, beam layout and range: cast in one pass."""
+
+    members: tuple[int, ...]  # indices into robot.lasers
+    positions: np.ndarray  # (m, 2) [m] mounts in the robot frame
+    firsts: np.ndarray  # (m,) [rad] robot-frame direction of each one's beam 0
+    step: float  # [rad] between beams
+    n: int  # beams per laser
+    height: float  # [m] above the floor
+    max_range: float  # [m]
+    section: CrossSection  # the scene at this height
+
+
+@dataclass(frozen=True, slots=True)
+class _Rays:
+    """Every beam of every laser, concatenated in laser order: per-beam constants."""
+
+    start: tuple[int, ...]  # where each laser's beams begin; last entry = number of beams
+    x0: np.ndarray  # (n,) [m] mount x in the robot frame
+    y0: np.ndarray  # (n,) [m] mount y in the robot frame
+    cos: np.ndarray  # (n,) cos of the beam direction in the robot frame
+    sin: np.ndarray  # (n,) sin of the beam direction in the robot frame
+    sigma: np.ndarray  # (n,) [m] range noise
+    min_range: np.ndarray  # (n,) [m]
+    max_range: np.ndarray  # (n,) [m]
+
+
+def _rays(lasers: tuple[LaserSpec, ...], beams: tuple[_Beams, ...]) -> _Rays:
+    counts = [len(b.angles) for b in beams]
+
+    def per_beam(values: list[float]) -> np.ndarray:
+        return np.repeat(np.array(values, dtype=float), counts)
+
+    return _Rays(
+        start=tuple(np.concatenate(([0], np.cumsum(counts))).tolist()),
+        x0=per_beam([spec.position[0] for spec in lasers]),
+        y0=per_beam([spec.position[1] for spec in lasers]),
+        cos=np.cos(np.concatenate([b.angles for b in beams])),
+        sin=np.sin(np.concatenate([b.angles for b in beams])),
+        sigma=per_beam([spec.sigma for spec in lasers]),
+        min_range=per_beam([spec.min_range for spec in lasers]),
+        max_range=per_beam([spec.max_range for spec in lasers]),
+    )
+
+
+def _beams(spec: LaserSpec) -> _Beams:
+    """Beams evenly spread over the field of view, centred on the mount's heading."""
+    n = spec.n_beams
+    step = spec.fov / (n - 1) if n > 1 else spec.resolution
+    angles = spec.yaw + (step * np.arange(n) - spec.fov / 2 if n > 1 else np.zeros(1))
+    origin = np.array(spec.position, dtype=float)
+    angles.flags.writeable = origin.flags.writeable = False
+    return _Beams(angles, origin, step)
+
+
+def _wrap(angle: float) -> float:
+    """Angle wrapped into [-pi, pi)."""
+    return (angle + math.pi) % (2.0 * math.pi) - math.pi
+
+
+def clip_command(v: np.ndarray, max_speed: float, max_yaw_rate: float) -> np.ndarray:
+    """Clip a robot-frame command (3,) to the speed limits.
+
+    The translational part is scaled down along its own direction so that its norm
+    is at most ``max_speed`` [m/s]; omega is clipped to ``max_yaw_rate`` [rad/s].
+    """
+    out = np.array(v, dtype=float).reshape(3)
+    speed = math.hypot(out[0], out[1])
+    if speed > max_speed:
+        out[:2] *= max_speed / speed
+    out[2] = min(max(out[2], -max_yaw_rate), max_yaw_rate)
+    return out
+
+
+def _quat_yaw(yaw: float) -> list[float]:
+    return [0.0, 0.0, math.sin(yaw / 2.0), math.cos(yaw / 2.0)]
+
+
+class World:
+    """A pybullet scene of ``scenario`` with the holonomic robot at pose A.
+
+    Parameters
+    ----------
+    scenario : the room.
+    seed : seeds the world's noise generator.
+    settings : simulation settings.
+    components : the scene's semantic components in the map frame; ``None`` derives
+        them with ``sim.semantics.derive_components`` when first needed.
+
+    One control tick is ``world.apply(v); contacts = world.step(); obs = world.sense()``.
+    Use as a context manager, or call :meth:`close`, to free the pybullet client.
+    """
+
+    def __init__(
+        self,
+        scenario: Scenario,
+        *,
+        seed: int,
+        settings: WorldSettings = WorldSettings(),  # noqa: B008 (frozen, so safe to share)
+        components: tuple[SemanticComponent, ...] | None = None,
+    ) -> None:
+        self.scenario = scenario
+        self.settings = settings
+        self.seed = seed
+        self._map_components = components
+        self._components_packed = False
+        self._rng = np.random.default_rng(seed)
+        self._substeps = max(1, round(settings.dt * settings.physics_hz))
+        self._h = settings.dt / self._substeps
+        self._client = p.connect(p.GUI if settings.gui else p.DIRECT)
+        if self._client < 0:
+            raise RuntimeError("pybullet: could not connect (a GUI is already open?)")
+        self._pb = {"physicsClientId": self._client}
+        p.setGravity(0.0, 0.0, 0.0, **self._pb)
+        p.setPhysicsEngineParameter(
+            fixedTimeStep=self._h, numSubSteps=0, deterministicOverlappingPairs=1, **self._pb
+        )
+        self._groups: dict[int, tuple[Solid, ...]] = {}  # static body -> its solids
+        self._build_scene()
+        self._robot = self._build_robot()
+        robot = scenario.robot
+        yaw_inertia = robot.mass * (robot.length**2 + robot.width**2) / 12.0  # box about z
+        force = settings.motor_force_factor * robot.mass * robot.max_accel
+        torque = settings.motor_force_factor * yaw_inertia * robot.max_yaw_accel
+        self._forces = [force, force, torque]
+        self._beams = tuple(_beams(spec) for spec in robot.lasers)
+        self._fans = self._group_lasers()
+        self._rays = _rays(robot.lasers, self._beams)
+        self._reset_state(scenario.start)
+
+    # ------------------------------------------------------------------ building
+
+    def _build_scene(self) -> None:
+        """Static bodies of at most 16 solids each (pybullet's limit for one compound).
+
+        Bullet revisits every body at every physics step, moving or not: one body per
+        element made the physics step twice as slow in the cluttered room (57 vs 27 us).
+        """
+        (x0, y0), (x1, y1) = self.scenario.bounds
+        floor = p.createVisualShape(
+            p.GEOM_BOX,
+            halfExtents=[(x1 - x0) / 2 + 1.0, (y1 - y0) / 2 + 1.0, 0.005],
+            rgbaColor=_FLOOR_RGBA,
+            **self._pb,
+        )
+        centre = [(x0 + x1) / 2, (y0 + y1) / 2, -0.005]
+        p.createMultiBody(0.0, -1, floor, centre, useMaximalCoordinates=True, **self._pb)
+        solids = scene_solids(self.scenario)
+        for i in range(0, len(solids), _COMPOUND_MAX):
+            group = solids[i : i + _COMPOUND_MAX]
+            shape = {
+                "shapeTypes": [p.GEOM_CYLINDER if e.radius else p.GEOM_BOX for e in group],
+                "halfExtents": [
+                    [e.size[0] / 2, e.size[1] / 2, (e.z[1] - e.z[0]) / 2] for e in group
+                ],
+                "radii": [e.radius for e in group],
+                "lengths": [e.z[1] - e.z[0] for e in group],
+            }
+            positions = [[*e.centre, (e.z[0] + e.z[1]) / 2] for e in group]
+            orientations = [_quat_yaw(e.yaw) for e in group]
+            col = p.createCollisionShapeArray(
+                **shape,
+                collisionFramePositions=positions,
+                collisionFrameOrientations=orientations,
+                **self._pb,
+            )
+            vis = p.createVisualShapeArray(
+                **shape,
+                rgbaColors=[[*e.colour, 1.0] for e in group],
+                visualFramePositions=positions,
+                visualFrameOrientations=orientations,
+                **self._pb,
+            )
+            # maximal coordinates: a static rigid body, skipped by the solver
+            body = p.createMultiBody(
+                0.0, col, vis, [0.0, 0.0, 0.0], useMaximalCoordinates=True, **self._pb
+            )
+            p.setCollisionFilterGroupMask(
+                body, -1, _SCENE_GROUP, _SCENE_GROUP | _ROBOT_GROUP, **self._pb
+            )
+            self._groups[body] = group
+
+    def _build_robot(self) -> int:
+        r = self.scenario.robot
+        half = [r.length / 2, r.width / 2, r.height / 2]
+        col = p.createCollisionShape(p.GEOM_BOX, halfExtents=half, **self._pb)
+        vis = p.createVisualShape(p.GEOM_BOX, halfExtents=half, rgbaColor=_ROBOT_RGBA, **self._pb)
+        ident = [0.0, 0.0, 0.0, 1.0]
+        body = p.createMultiBody(
+            0.0,
+            -1,
+            -1,
+            [0.0, 0.0, 0.0],
+            ident,
+            linkMasses=[0.0, 0.0, r.mass],
+            linkCollisionShapeIndices=[-1, -1, col],
+            linkVisualShapeIndices=[-1, -1, vis],
+            # the box floats 1 mm above the (visual) floor: no contact with it
+            linkPositions=[[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, r.height / 2 + 0.001]],
+            linkOrientations=[ident] * 3,
+            linkInertialFramePositions=[[0.0, 0.0, 0.0]] * 3,
+            linkInertialFrameOrientations=[ident] * 3,
+            linkParentIndices=[0, 1, 2],
+            linkJointTypes=[p.JOINT_PRISMATIC, p.JOINT_PRISMATIC, p.JOINT_REVOLUTE],
+            linkJointAxis=[[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+            **self._pb,
+        )
+        for j in _JOINTS:
+            p.changeDynamics(
+                body, j, linearDamping=0.0, angularDamping=0.0, jointDamping=0.0, **self._pb
+            )
+            p.setCollisionFilterGroupMask(body, j, _ROBOT_GROUP, _SCENE_GROUP, **self._pb)
+        return body
+
+    def _group_lasers(self) -> tuple[_Fans, ...]:
+        lasers = self.scenario.robot.lasers
+        groups: dict[tuple, list[int]] = {}
+        for i, (spec, beams) in enumerate(zip(lasers, self._beams, strict=True)):
+            key = (spec.height, beams.step, len(beams.angles), spec.max_range)
+            groups.setdefault(key, []).append(i)
+        sections: dict[float, CrossSection] = {}
+        fans = []
+        for (height, step, n, max_range), members in groups.items():
+            if height not in sections:
+                sections[height] = cross_section(self.scenario, height)
+            fans.append(
+                _Fans(
+                    members=tuple(members),
+                    positions=np.array([lasers[i].position for i in members]),
+                    firsts=np.array([self._beams[i].angles[0] for i in members]),
+                    step=step,
+                    n=n,
+                    height=height,
+                    max_range=max_range,
+                    section=sections[height],
+                )
+            )
+        return tuple(fans)
+
+    # ------------------------------------------------------------------ state
+
+    def _reset_state(self, pose: Pose2D) -> None:
+        for j, q in zip(_JOINTS, (pose.x, pose.y, pose.yaw), strict=True):
+            p.resetJointState(self._robot, j, q, 0.0, **self._pb)
+        self._command = (0.0, 0.0, 0.0)  # robot frame, clipped
+        self._setpoint = (0.0, 0.0, 0.0)  # motor targets: map-frame (v_x, v_y, omega)
+        self._ticks = 0
+        self._contacts: list[Contact] = []
+        self._open: int | None = None  # index of the episode still open
+        self._last_touch = -math.inf
+        self._touching = False
+        self._accel_map = np.zeros(2)
+        self._read_state()
+
+    def _read_state(self) -> None:
+        states = p.getJointStates(self._robot, _JOINTS, **self._pb)
+        self._q = (states[0][0], states[1][0], states[2][0])
+        self._qd = (states[0][1], states[1][1], states[2][1])
+
+    def reset(self, pose: Pose2D | None = None, *, seed: int | None = None) -> Observation:
+        """Put the robot at ``pose`` (default: the scenario's start A) at rest, time 0.
+
+        Contacts are forgotten; ``seed`` (if given) reseeds the noise generator.
+        Returns the first observation.
+        """
+        if seed is not None:
+            self.seed = seed
+            self._rng = np.random.default_rng(seed)
+        self._reset_state(self.scenario.start if pose is None else pose)
+        return self.sense()
+
+    @property
+    def t(self) -> float:
+        """Simulated time since the last reset [s]."""
+        return self._ticks * self.settings.dt
+
+    def true_pose(self) -> Pose2D:
+        """The robot's exact pose in the map frame."""
+        return Pose2D(self._q[0], self._q[1], _wrap(self._q[2]))
+
+    def true_velocity(self) -> np.ndarray:
+        """The robot's exact velocity (3,): robot-frame (v_x [m/s], v_y [m/s], omega [rad/s])."""
+        c, s = math.cos(self._q[2]), math.sin(self._q[2])
+        vx, vy, w = self._qd
+        return np.array([c * vx + s * vy, -s * vx + c * vy, w])
+
+    @property
+    def touching(self) -> bool:
+        """Whether the robot touched a scene element at the last physics substep."""
+        return self._touching
+
+    def contacts(self) -> list[Contact]:
+        """All collision episodes since the last reset, in order (ended ones have t_end)."""
+        return list(self._contacts)
+
+    # ------------------------------------------------------------------ acting
+
+    def apply(self, v: np.ndarray) -> None:
+        """Command robot-frame velocity ``v`` (3,) (v_x [m/s], v_y [m/s], omega [rad/s]).
+
+        Held until the next call; clipped to the robot's speed limits here and rate
+        limited to its acceleration limits while stepping.
+        """
+        v = np.asarray(v, dtype=float)
+        if v.shape != (3,) or not np.all(np.isfinite(v)):
+            raise ValueError(f"World.apply: v must be 3 finite numbers, got {v!r}")
+        r = self.scenario.robot
+        self._command = tuple(clip_command(v, r.max_speed, r.max_yaw_rate).tolist())
+
+    def step(self) -> list[Contact]:
+        """Advance one control tick ``dt``; return the collision episodes that started in it."""
+        r = self.scenario.robot
+        h = self._h
+        dv_max, dw_max = r.max_accel * h, r.max_yaw_accel * h
+        cx, cy, cw = self._command
+        spx, spy, spw = self._setpoint
+        v_before = np.array(self._qd[:2])
+        started: list[Contact] = []
+        first_substep = self._ticks * self._substeps
+        for i in range(self._substeps):
+            spw += min(max(cw - spw, -dw_max), dw_max)
+            # the robot-frame command in the map frame at the heading halfway through
+            # the substep, so that a turning robot follows its arc to second order
+            yaw = self._q[2] + 0.5 * h * spw
+            c, s = math.cos(yaw), math.sin(yaw)
+            dx, dy = c * cx - s * cy - spx, s * cx + c * cy - spy
+            norm = math.hypot(dx, dy)
+            if norm > dv_max:
+                dx, dy = dx * dv_max / norm, dy * dv_max / norm
+            spx += dx
+            spy += dy
+            p.setJointMotorControlArray(
+                self._robot,
+                _JOINTS,
+                p.VELOCITY_CONTROL,
+                targetVelocities=[spx, spy, spw],
+                forces=self._forces,
+                **self._pb,
+            )
+            p.stepSimulation(**self._pb)
+            self._read_state()
+            self._track_contacts((first_substep + i + 1) * h, started)
+        self._setpoint = (spx, spy, spw)
+        self._ticks += 1
+        self._accel_map = (np.array(self._qd[:2]) - v_before) / self.settings.dt
+        return started
+
+    def _track_contacts(self, t: float, started: list[Contact]) -> None:
+        """Open or close the collision episode after the physics substep ending at ``t``."""
+        tol = self.settings.contact_tolerance_m
+        touch = [c for c in p.getContactPoints(bodyA=self._robot, **self._pb) if c[8] <= tol]
+        self._touching = bool(touch)
+        if touch:
+            self._last_touch = t
+            if self._open is None:
+                deepest = min(touch, key=lambda c: c[8])
+                robot_is_a = deepest[1] == self._robot
+                other = deepest[2] if robot_is_a else deepest[1]
+                point = deepest[6] if robot_is_a else deepest[5]
+                contact = Contact(
+                    index=len(self._contacts),
+                    t_start=t,
+                    position=np.array(point[:2]),
+                    obstacle=self._element_at(other, point),
+                )
+                self._open = contact.index
+                self._contacts.append(contact)
+                started.append(contact)
+        elif (
+            self._open is not None
+            and t - self._last_touch >= self.settings.contact_debounce_s - 1e-9
+        ):
+            self._contacts[self._open] = replace(self._contacts[self._open], t_end=self._last_touch)
+            self._open = None
+
+    def _element_at(self, body: int, point: tuple[float, float, float]) -> str:
+        """Name of the scene element of static ``body`` nearest to map ``point``."""
+        group = self._groups[body]
+        distances = [e.distance(np.asarray(point)) for e in group]
+        return group[int(np.argmin(distances))].name
+
+    # ------------------------------------------------------------------ sensing
+
+    def _components_seen_from(self, pose: Pose2D) -> tuple[SemanticComponent, ...]:
+        """The semantic components in the frame of a robot at ``pose``."""
+        from sim.semantics import derive_components, in_robot_frame
+
+        if self._map_components is None:
+            self._map_components = derive_components(self.scenario)
+        elif not self._components_packed:
+            # seen from the map's origin: the same components, packed once for speed
+            self._map_components = in_robot_frame(self._map_components, Pose2D(0.0, 0.0, 0.0))
+        self._components_packed = True
+        return in_robot_frame(self._map_components, pose)
+
+    def _true_ranges(self, pose: Pose2D) -> np.ndarray:
+        """Noise-free ranges [m] of all beams from ``pose`` (in :class:`_Rays` order),
+        max_range where nothing is hit."""
+        out = np.empty(self._rays.start[-1])
+        for fan in self._fans:
+            origins = pose.to_map_frame(fan.positions)
+            firsts = pose.yaw + fan.firsts
+            if self.settings.laser_backend == "analytic":
+                ranges = cast(fan.section, origins, firsts, fan.step, fan.n, fan.max_range)
+            else:
+                ranges = self._ray_test(fan, origins, firsts)
+            for i, r in zip(fan.members, ranges, strict=True):
+                out[self._rays.start[i] : self._rays.start[i + 1]] = r
+        return out
+
+    def _ray_test(self, fan: _Fans, origins: np.ndarray, firsts: np.ndarray) -> np.ndarray:
+        """pybullet's rayTestBatch for the fans of ``fan`` (m, n) [m]."""
+        angles = (firsts[:, None] + fan.step * np.arange(fan.n)).ravel()
+        start = np.column_stack(
+            (np.repeat(origins, fan.n, axis=0), np.full(len(angles), fan.height))
+        )
+        direction = np.column_stack((np.cos(angles), np.sin(angles), np.zeros(len(angles))))
+        hits = p.rayTestBatch(
+            start.tolist(),
+            (start + fan.max_range * direction).tolist(),
+            numThreads=1,
+            collisionFilterMask=_SCENE_GROUP,  # the scene, not the robot
+            **self._pb,
+        )
+        fraction = np.array([hit[2] if hit[0] >= 0 else 1.0 for hit in hits])
+        return (fraction * fan.max_range).reshape(-1, fan.n)
+
+    def sense(self) -> Observation:
+        """What the robot knows now (draws this tick's noise).
+
+        Returns
+        -------
+        Observation with the noisy pose and velocity estimates, one LaserScan per
+        ``robot.lasers`` entry (ranges (n,) [m]), all laser hits (m, 2) [m] in the
+        robot frame, the IMU reading and the semantic components in the robot frame
+        of the estimated pose.
+        """
+        r = self.scenario.robot
+        pose = self.true_pose()
+        vel = self.true_velocity()
+        rays = self._rays
+        z = self._rng.standard_normal(8 + rays.start[-1])
+        (s_xy, s_yaw), (s_gyro, s_acc) = r.pose_sigma, r.imu_sigma
+        estimate = Pose2D(
+            pose.x + s_xy * z[0], pose.y + s_xy * z[1], _wrap(pose.yaw + s_yaw * z[2])
+        )
+        c, s = math.cos(pose.yaw), math.sin(pose.yaw)
+        ax, ay = self._accel_map
+        yaw_rate = float(vel[2] + s_gyro * z[3])
+        imu = ImuReading(
+            yaw_rate=yaw_rate,
+            accel=np.array([c * ax + s * ay + s_acc * z[4], -s * ax + c * ay + s_acc * z[5]]),
+        )
+        sv = self.settings.velocity_sigma
+        velocity = np.array([vel[0] + sv * z[6], vel[1] + sv * z[7], yaw_rate])
+
+        true = self._true_ranges(pose)
+        ranges = np.where(
+            true < rays.max_range,
+            np.clip(true + rays.sigma * z[8:], rays.min_range, rays.max_range),
+            rays.max_range,
+        )
+        seen = ranges < rays.max_range
+        hits = ranges[seen]
+        points = np.column_stack(
+            (rays.x0[seen] + hits * rays.cos[seen], rays.y0[seen] + hits * rays.sin[seen])
+        )
+        scans = tuple(
+            LaserScan(
+                name=spec.name,
+                angles=beams.angles,
+                ranges=ranges[a:b],
+                origin=beams.origin,
+                max_range=spec.max_range,
+            )
+            for spec, beams, a, b in zip(
+                r.lasers, self._beams, rays.start[:-1], rays.start[1:], strict=True
+            )
+        )
+        return Observation(
+            t=self.t,
+            pose=estimate,
+            velocity=velocity,
+            scans=scans,
+            points=points,
+            imu=imu,
+            components=self._components_seen_from(estimate),
+        )
+
+    def camera_image(self) -> np.ndarray:
+        """Render the robot's camera (``robot.camera``) from the true pose.
+
+        Returns
+        -------
+        (height_px, width, 3) uint8 RGB image, pybullet's ER_TINY_RENDERER, no shadows.
+        """
+        cam = self.scenario.robot.camera
+        pose = self.true_pose()
+        eye_xy = pose.to_map_frame(np.array(cam.position))[0]
+        cy, sy = math.cos(pose.yaw), math.sin(pose.yaw)
+        cp, sp = math.cos(cam.pitch), math.sin(cam.pitch)
+        eye = [float(eye_xy[0]), float(eye_xy[1]), cam.height]
+        forward = [cy * cp, sy * cp, sp]
+        up = [-cy * sp, -sy * sp, cp]
+        view = p.computeViewMatrix(
+            eye, [eye[0] + forward[0], eye[1] + forward[1], eye[2] + forward[2]], up, **self._pb
+        )
+        projection = p.computeProjectionMatrixFOV(
+            math.degrees(cam.fov), cam.width / cam.height_px, _CAMERA_NEAR_M, cam.far, **self._pb
+        )
+        _, _, rgba, _, _ = p.getCameraImage(
+            cam.width,
+            cam.height_px,
+            view,
+            projection,
+            shadow=0,
+            renderer=p.ER_TINY_RENDERER,
+            flags=p.ER_NO_SEGMENTATION_MASK,
+            **self._pb,
+        )
+        image = np.asarray(rgba, dtype=np.uint8).reshape(cam.height_px, cam.width, 4)
+        return image[:, :, :3].copy()
+
+    # ------------------------------------------------------------------ lifetime
+
+    def close(self) -> None:
+        """Disconnect the pybullet client (idempotent)."""
+        if self._client >= 0:
+            p.disconnect(**self._pb)
+            self._client = -1
+
+    def __enter__(self) -> World:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()
