@@ -1,0 +1,669 @@
+"""The primary navigation task: progress along the route, the inspection, scoring.
+
+Thesis section 7.6.1.2 and spec section 7: drive from A, dock under the table
+at B, drive back to A; on the way, when the red cylinder is seen on the camera,
+inspect it "by moving the robot sideways while facing the object"; as fast and
+as safely as possible. The score is the completion time plus 60 s per
+collision (thesis 7.6.2, Fig. 7.50c). Thesis section 7.5 (Fig. 7.44b, Table
+7.10) reports the distribution, mean and standard deviation of the robot's
+minimum clearance to obstacles, which :class:`PrimaryOutcome` carries as well.
+
+This module is pure: the control loop calls :meth:`PrimaryTask.update` once per
+tick with the simulated time, the true pose, the robot-frame velocity, the
+tick's minimum clearance (see :func:`footprint_clearance`) and the collision
+episodes the World reported as started during the tick; it returns
+:class:`PrimaryEvent` values for the caller to record and display.
+:meth:`PrimaryTask.outcome` gives the trial's result.
+
+Decisions where the thesis and the spec are silent (settings in
+:class:`PrimarySettings`):
+
+- Route. A route is a sequence of goals, ``"dock"`` (the ``[dock]`` pose B:
+  the robot centre within ``dock.tolerance_m`` of B and the heading within
+  ``dock.tolerance_rad`` of B's; docked under the table, or, for a practice
+  course without a table, just that pose) and ``"start"`` (the robot centre
+  within ``goal_tolerance_m`` of A, any heading). Goals are taken strictly in
+  order and at most one per tick, so reaching A before B does nothing. The
+  robot starts at A, so a route may not begin with ``"start"``, and two equal
+  goals in a row would be reached at once, so they are refused.
+- Timing. The clock starts at ``t_start`` (default 0, the World's reset time),
+  not at the first update; the completion time is the elapsed time of the tick
+  at which the last goal is reached. Leg times are the differences between
+  successive goal times.
+- Inspection. The inspection object's surface distance is measured from the
+  robot centre (cylinder: centre distance minus radius; box: distance to its
+  footprint). A tick *qualifies* when that distance is within
+  ``inspection_distance_m``, the object's centre lies within
+  ``facing_tolerance_deg`` of the heading, and the robot moves sideways
+  (``|v_y| >= min_sideways_speed`` and ``|v_y| > |v_x|``). A *visit* is a
+  maximal run of ticks within the distance band. Over a visit the signed angle
+  the robot centre sweeps about the object's centre is summed over the
+  qualifying ticks only (the step from the previous tick to a qualifying tick);
+  the inspection is done when the absolute net arc of a visit reaches
+  ``min_arc_deg``. Either direction counts; going back and forth cancels out.
+  A pause inside the band (stopping to answer a secondary-task question, which
+  has priority, thesis 7.6.1.3) keeps the visit's arc; leaving the band ends
+  the visit and the next visit starts from zero. ``inspection_arc_deg`` in
+  the outcome is the largest absolute net arc any visit reached.
+  ``inspection_started`` is reported at the first qualifying tick of each
+  visit until the inspection is done.
+- Missing inspection. With ``inspection_required`` the task is not completed
+  until the inspection is done: arriving at the last goal without it reports
+  ``inspection_missing`` (once per arrival) and the participant has to go
+  back to the object and then return; the clock keeps running and a timeout
+  may end the trial. This is what an experimenter enforcing the instruction
+  would do, and it keeps every completed trial comparable (same route, same
+  inspection). The other reading, completing the trial and flagging it, is
+  ``inspection_required=False``: the inspection is still tracked and reported
+  in ``inspection_done`` and ``inspection_arc_deg``.
+- Collisions. Each :class:`~sim.types.Contact` episode counts once, by its
+  ``index``, however often it is passed; episodes passed after the task has
+  ended are not counted.
+- Timeout. The first tick with elapsed time ``>= timeout_s`` at which the task
+  is not completed ends it: ``completed`` False, ``completion_time_s`` equal to
+  ``timeout_s`` and the score ``timeout_s + collision_penalty_s *
+  collisions``, a lower bound of the score the participant would have had
+  (a censored value; analyses should flag or drop such trials). Reaching the
+  last goal on that very tick counts as completion.
+- Path length and clearance use the ticks from the first update up to and
+  including the tick that ends the task. Clearance values that are NaN (no
+  measurement) are skipped; ``inf`` (nothing within range) counts in the
+  histogram's overflow bin but not in the mean, standard deviation (ddof=0,
+  as a description of the trial, Table 7.10) or minimum. The histogram has
+  fixed 0.1 m bins from 0 to 2 m (:data:`CLEARANCE_BIN_EDGES_M`) and one
+  overflow bin for 2 m and more, so trials and participants can be pooled.
+- :meth:`PrimaryTask.outcome` may be called at any time; before the task ends
+  it describes the trial so far (``completed`` and ``timed_out`` False, the
+  elapsed time as completion time), which is what an aborted trial stores.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+from sim.scenario import Box, Cylinder, Scenario
+from sim.types import Contact, Pose2D
+
+GOALS: tuple[str, ...] = ("dock", "start")
+ROUTE_POINT_GOALS: dict[str, str] = {"A": "start", "B": "dock"}  # a protocol's route points
+EVENT_KINDS: tuple[str, ...] = (
+    "leg_reached",
+    "dock_reached",
+    "inspection_started",
+    "inspection_done",
+    "inspection_missing",
+    "timeout",
+    "task_completed",
+)
+EventKind = Literal[
+    "leg_reached",
+    "dock_reached",
+    "inspection_started",
+    "inspection_done",
+    "inspection_missing",
+    "timeout",
+    "task_completed",
+]
+CLEARANCE_BIN_WIDTH_M = 0.1
+CLEARANCE_BIN_EDGES_M: np.ndarray = np.round(np.arange(21) * CLEARANCE_BIN_WIDTH_M, 10)
+"""(21,) [m] edges of the 20 clearance bins; a 21st bin counts values >= 2 m."""
+_EPS_S = 1e-9  # tolerance on time comparisons, against sums of float tick periods
+
+
+@dataclass(frozen=True, slots=True)
+class PrimarySettings:
+    """Settings of the primary task; change with ``dataclasses.replace``.
+
+    Attributes
+    ----------
+    route : tuple of str
+        Goals in order, each ``"dock"`` (pose B) or ``"start"`` (A). Thesis:
+        ``("dock", "start")``; a practice course may use ``("dock",)``.
+    inspection_required : bool
+        Whether the last goal only completes the task after the inspection.
+    goal_tolerance_m : float
+        Distance [m] of the robot centre from A that counts as back at A.
+    inspection_distance_m : tuple of float
+        ``(near, far)`` [m], the band of distances from the object's surface to
+        the robot centre in which inspection motion counts.
+    facing_tolerance_deg : float
+        Largest angle [deg] between the heading and the bearing of the object's
+        centre that counts as facing it.
+    min_sideways_speed : float
+        Smallest ``|v_y|`` [m/s] that counts as moving sideways.
+    min_arc_deg : float
+        Arc [deg] about the object's centre one visit must sweep.
+    timeout_s : float
+        Time [s] after which an unfinished trial ends.
+    collision_penalty_s : float
+        Time [s] added to the score per collision (thesis: 60).
+    """
+
+    route: tuple[str, ...] = ("dock", "start")
+    inspection_required: bool = True
+    goal_tolerance_m: float = 0.3
+    inspection_distance_m: tuple[float, float] = (0.4, 1.6)
+    facing_tolerance_deg: float = 25.0
+    min_sideways_speed: float = 0.05
+    min_arc_deg: float = 90.0
+    timeout_s: float = 600.0
+    collision_penalty_s: float = 60.0
+
+    def __post_init__(self) -> None:
+        route = self.route
+        if (
+            not isinstance(route, tuple)
+            or not route
+            or any(not isinstance(g, str) or g not in GOALS for g in route)
+        ):
+            raise _bad("route", f"must be a non-empty tuple of goals from {GOALS}", route)
+        if route[0] == "start":
+            raise _bad("route", "cannot begin with 'start' (the robot starts at A)", route)
+        if any(a == b for a, b in zip(route, route[1:], strict=False)):
+            raise _bad("route", "cannot name the same goal twice in a row", route)
+        if not isinstance(self.inspection_required, bool):
+            raise _bad("inspection_required", "must be true or false", self.inspection_required)
+        band = self.inspection_distance_m
+        if (
+            not isinstance(band, tuple)
+            or len(band) != 2
+            or not all(_is_finite(b) for b in band)
+            or not 0.0 <= band[0] < band[1]
+        ):
+            raise _bad("inspection_distance_m", "must be (near, far) with 0 <= near < far", band)
+        if not _is_finite(self.facing_tolerance_deg) or not 0 < self.facing_tolerance_deg <= 180:
+            raise _bad(
+                "facing_tolerance_deg", "must be an angle in (0, 180]", self.facing_tolerance_deg
+            )
+        for name in ("goal_tolerance_m", "min_arc_deg", "timeout_s"):
+            value = getattr(self, name)
+            if not _is_finite(value) or value <= 0.0:
+                raise _bad(name, "must be a positive number", value)
+        for name in ("min_sideways_speed", "collision_penalty_s"):
+            value = getattr(self, name)
+            if not _is_finite(value) or value < 0.0:
+                raise _bad(name, "must be zero or a positive number", value)
+
+
+@dataclass(frozen=True, slots=True)
+class PrimaryEvent:
+    """Something that happened in the primary task, for recording and display.
+
+    Attributes
+    ----------
+    kind : str
+        One of :data:`EVENT_KINDS`.
+    t : float
+        Simulated time [s] of the tick.
+    leg_index : int or None
+        0-based leg of the route concerned (``leg_reached``, ``dock_reached``,
+        ``inspection_missing``); None otherwise.
+    goal : str or None
+        That leg's goal, ``"dock"`` or ``"start"``.
+    arc_deg : float or None
+        ``inspection_done``: absolute net arc [deg] of the visit.
+    """
+
+    kind: EventKind
+    t: float
+    leg_index: int | None = None
+    goal: str | None = None
+    arc_deg: float | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class PrimaryOutcome:
+    """The result of one trial (or of the trial so far).
+
+    Attributes
+    ----------
+    completed : bool
+        Whether every goal was reached (and the inspection done, if required).
+    timed_out : bool
+        Whether the trial ended by timeout.
+    completion_time_s : float
+        [s] from ``t_start`` to completion; ``timeout_s`` after a timeout; the
+        elapsed time while the task runs.
+    collisions : int
+        Collision episodes during the task.
+    score : float
+        ``completion_time_s + collision_penalty_s * collisions`` [s]; lower is better.
+    path_length_m : float
+        Length [m] of the true path.
+    clearance_mean_m, clearance_std_m, clearance_min_m : float
+        Mean, standard deviation (ddof=0) and minimum [m] of the finite per-tick
+        clearances; NaN without any.
+    clearance_histogram : tuple of int
+        (21,) tick counts per bin of :data:`CLEARANCE_BIN_EDGES_M`, the last for >= 2 m.
+    clearance_samples : int
+        Ticks whose clearance was counted in the histogram.
+    inspection_required, inspection_done : bool
+    inspection_arc_deg : float
+        Largest absolute net arc [deg] of any visit.
+    inspection_time_s : float
+        [s] from ``t_start`` to the inspection; NaN if not done.
+    route : tuple of str
+    legs_reached : int
+    leg_times_s : tuple of float
+        Duration [s] of each reached leg, in route order.
+    """
+
+    completed: bool
+    timed_out: bool
+    completion_time_s: float
+    collisions: int
+    score: float
+    path_length_m: float
+    clearance_mean_m: float
+    clearance_std_m: float
+    clearance_min_m: float
+    clearance_histogram: tuple[int, ...]
+    clearance_samples: int
+    inspection_required: bool
+    inspection_done: bool
+    inspection_arc_deg: float
+    inspection_time_s: float
+    route: tuple[str, ...]
+    legs_reached: int
+    leg_times_s: tuple[float, ...]
+
+
+def route_from_points(points: Sequence[str]) -> tuple[str, ...]:
+    """A protocol's route points (``["A", "B", "A"]``, starting at A) as goals.
+
+    Parameters
+    ----------
+    points : sequence of str
+        Route points, ``"A"`` (start pose) or ``"B"`` (dock pose), the first ``"A"``.
+
+    Returns
+    -------
+    tuple of str
+        The goals after the start, for :attr:`PrimarySettings.route`:
+        ``("dock", "start")`` for ``["A", "B", "A"]``.
+    """
+    points = list(points)
+    if not points or points[0] != "A" or any(p not in ROUTE_POINT_GOALS for p in points):
+        raise ValueError(f"route: must start at 'A' and name only 'A' and 'B', got {points}")
+    return tuple(ROUTE_POINT_GOALS[p] for p in points[1:])
+
+
+# ------------------------------------------------------------------------ geometry
+
+
+def polygon_distances(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
+    """Euclidean distance from each point to a filled polygon, 0 inside.
+
+    Parameters
+    ----------
+    points : ndarray, shape (m, 2)
+        Points [m].
+    polygon : ndarray, shape (k, 2)
+        Vertices [m] of a simple polygon in order (either orientation), k >= 3.
+
+    Returns
+    -------
+    ndarray, shape (m,)
+        Distances [m]; 0 for points inside or on the boundary (even-odd rule).
+    """
+    p = np.asarray(points, dtype=float).reshape(-1, 2)
+    a = np.asarray(polygon, dtype=float)
+    if a.ndim != 2 or a.shape[1] != 2 or len(a) < 3 or not np.all(np.isfinite(a)):
+        raise ValueError(f"polygon: must be (k, 2) finite vertices with k >= 3, got {a.shape}")
+    if not np.all(np.isfinite(p)):
+        raise ValueError("points: must be finite")
+    if len(p) == 0:
+        return np.empty(0)
+    b = np.roll(a, -1, axis=0)
+    ex, ey = (b - a).T  # (k,) edge vectors
+    ax, ay, by = a[:, 0], a[:, 1], b[:, 1]
+    length2 = ex * ex + ey * ey
+    px, py = p[:, 0:1], p[:, 1:2]  # (m, 1)
+    rx, ry = px - ax, py - ay  # (m, k) from each edge's start
+    with np.errstate(invalid="ignore", divide="ignore"):
+        # Nearest point of each edge: the projection clipped to the segment.
+        s = np.clip(np.where(length2 > 0, (rx * ex + ry * ey) / length2, 0.0), 0.0, 1.0)
+        dx, dy = rx - s * ex, ry - s * ey
+        dist = np.sqrt((dx * dx + dy * dy).min(axis=1))
+        # Even-odd rule: count edges crossing the horizontal ray to the point's right.
+        straddles = (ay > py) != (by > py)
+        x_cross = ax + ry * ex / (by - ay)
+    inside = (np.count_nonzero(straddles & (px < x_cross), axis=1) % 2) == 1
+    return np.where(inside, 0.0, dist)
+
+
+def footprint_clearance(points: np.ndarray, footprint: np.ndarray) -> float:
+    """Minimum distance [m] from the robot's footprint to the laser points.
+
+    Parameters
+    ----------
+    points : ndarray, shape (m, 2)
+        Laser hits [m] in the robot frame (``Observation.points``).
+    footprint : ndarray, shape (k, 2)
+        Footprint polygon [m] in the robot frame (``RobotSpec.footprint()``).
+
+    Returns
+    -------
+    float
+        The smallest point-to-polygon distance [m]; 0 if a point lies inside
+        the footprint; ``inf`` without points.
+    """
+    d = polygon_distances(points, footprint)
+    return float(d.min()) if len(d) else math.inf
+
+
+# ---------------------------------------------------------------------------- task
+
+
+class PrimaryTask:
+    """The primary-task state machine of one trial.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scene: start A, the dock B and the inspection object.
+    settings : PrimarySettings, optional
+        Defaults to ``PrimarySettings()``.
+    t_start : float
+        Simulated time [s] at which the trial starts (the World's reset time).
+
+    Raises
+    ------
+    ValueError
+        If the route needs a dock the scenario lacks, or the inspection is
+        required and the scenario names no inspection object.
+
+    Notes
+    -----
+    Call :meth:`update` once per control tick with non-decreasing ``t``; once
+    :attr:`done`, further updates return no events and change nothing.
+    """
+
+    def __init__(
+        self, scenario: Scenario, *, settings: PrimarySettings | None = None, t_start: float = 0.0
+    ) -> None:
+        self.settings = s = settings if settings is not None else PrimarySettings()
+        self.scenario = scenario
+        where = scenario.source or scenario.name
+        if "dock" in s.route and scenario.dock is None:
+            raise ValueError(
+                f"{where}: field 'dock': the route {list(s.route)} needs a [dock] pose "
+                "and this scenario has none"
+            )
+        self._object: Box | Cylinder | None = None
+        if scenario.inspection_object:
+            element = scenario.element(scenario.inspection_object)
+            if isinstance(element, Box | Cylinder):
+                self._object = element
+        if s.inspection_required and self._object is None:
+            raise ValueError(
+                f"{where}: field 'inspection_object': the inspection is required "
+                "but this scenario names no box or cylinder to inspect"
+            )
+        if not _is_finite(t_start):
+            raise ValueError(f"PrimaryTask.t_start: must be a finite time, got {t_start!r}")
+        self.t_start = float(t_start)
+        self._t_last = -math.inf
+        self._leg = 0
+        self._leg_times: list[float] = []  # elapsed [s] at which each leg was reached
+        self._at_final = False  # inside the last goal's tolerance while inspection pending
+        self._done = False
+        self._timed_out = False
+        self._completion_s = math.nan
+        self._contacts: set[int] = set()
+        self._last_xy: tuple[float, float] | None = None
+        self._path_m = 0.0
+        self._clearances: list[float] = []  # [m] finite per-tick clearances
+        self._hist = np.zeros(len(CLEARANCE_BIN_EDGES_M), dtype=np.int64)
+        self._hist_n = 0
+        # inspection
+        self._in_visit = False
+        self._visit_started = False  # inspection_started reported for this visit
+        self._visit_arc = 0.0  # [rad] signed net arc of the current visit
+        self._last_phi = math.nan  # [rad] polar angle about the object at the last tick
+        self._best_arc = 0.0  # [rad]
+        self._inspected = False
+        self._inspection_s = math.nan
+
+    # -- state ------------------------------------------------------------------------
+
+    @property
+    def leg_index(self) -> int:
+        """0-based index of the leg being driven; ``len(route)`` once all are reached."""
+        return self._leg
+
+    @property
+    def next_goal(self) -> str | None:
+        """The goal of the current leg, or None once all are reached."""
+        route = self.settings.route
+        return route[self._leg] if self._leg < len(route) else None
+
+    @property
+    def done(self) -> bool:
+        """Whether the task has ended (completed or timed out)."""
+        return self._done
+
+    @property
+    def completed(self) -> bool:
+        return self._done and not self._timed_out
+
+    @property
+    def timed_out(self) -> bool:
+        return self._timed_out
+
+    @property
+    def inspection_done(self) -> bool:
+        return self._inspected
+
+    @property
+    def inspection_arc_deg(self) -> float:
+        """Largest absolute net arc [deg] of any visit so far."""
+        return math.degrees(self._best_arc)
+
+    @property
+    def collisions(self) -> int:
+        return len(self._contacts)
+
+    @property
+    def elapsed_s(self) -> float:
+        """[s] from ``t_start`` to the last update (0 before the first)."""
+        return max(0.0, self._t_last - self.t_start) if math.isfinite(self._t_last) else 0.0
+
+    # -- driving ----------------------------------------------------------------------
+
+    def update(
+        self,
+        t: float,
+        pose: Pose2D,
+        velocity: np.ndarray,
+        clearance_m: float,
+        contacts_started: Sequence[Contact] = (),
+    ) -> list[PrimaryEvent]:
+        """Advance to the tick at time ``t`` [s].
+
+        Parameters
+        ----------
+        t : float
+            Simulated time [s], not less than that of any earlier call.
+        pose : Pose2D
+            The robot's true pose in the map frame.
+        velocity : ndarray, shape (3,)
+            Robot-frame ``(v_x [m/s], v_y [m/s], omega [rad/s])``.
+        clearance_m : float
+            The tick's minimum clearance [m] (:func:`footprint_clearance`); NaN
+            if there was no measurement.
+        contacts_started : sequence of Contact
+            Collision episodes that started during the tick (``World.step()``).
+
+        Returns
+        -------
+        list of PrimaryEvent
+            In the order they happened (possibly empty).
+        """
+        if not _is_finite(t) or t < self._t_last:
+            raise ValueError(
+                f"PrimaryTask.update: t must be finite and non-decreasing, got {t!r} "
+                f"after {self._t_last!r}"
+            )
+        if self._done:
+            return []
+        v = np.asarray(velocity, dtype=float)
+        if v.shape != (3,):
+            raise ValueError(f"PrimaryTask.update: velocity must have shape (3,), got {v.shape}")
+        clearance = float(clearance_m)
+        if clearance < 0.0:
+            raise ValueError(f"PrimaryTask.update: clearance_m must be >= 0, got {clearance!r}")
+        self._t_last = float(t)
+        elapsed = self._t_last - self.t_start
+        s = self.settings
+        events: list[PrimaryEvent] = []
+
+        for contact in contacts_started:
+            self._contacts.add(int(contact.index))
+        xy = (float(pose.x), float(pose.y))
+        if self._last_xy is not None:
+            self._path_m += math.hypot(xy[0] - self._last_xy[0], xy[1] - self._last_xy[1])
+        self._last_xy = xy
+        self._add_clearance(clearance)
+        self._inspect(t, pose, v, events)
+
+        goal = s.route[self._leg]
+        if self._goal_reached(goal, pose):
+            final = self._leg == len(s.route) - 1
+            if final and s.inspection_required and not self._inspected:
+                if not self._at_final:
+                    events.append(PrimaryEvent("inspection_missing", t, self._leg, goal))
+                self._at_final = True
+            else:
+                events.append(PrimaryEvent("leg_reached", t, self._leg, goal))
+                if goal == "dock":
+                    events.append(PrimaryEvent("dock_reached", t, self._leg, goal))
+                self._leg_times.append(elapsed)
+                self._leg += 1
+                if final:
+                    self._done = True
+                    self._completion_s = elapsed
+                    events.append(PrimaryEvent("task_completed", t))
+        else:
+            self._at_final = False
+        if not self._done and elapsed >= s.timeout_s - _EPS_S:
+            self._done = True
+            self._timed_out = True
+            self._completion_s = s.timeout_s
+            events.append(PrimaryEvent("timeout", t))
+        return events
+
+    def _goal_reached(self, goal: str, pose: Pose2D) -> bool:
+        if goal == "start":
+            a = self.scenario.start
+            return math.hypot(pose.x - a.x, pose.y - a.y) <= self.settings.goal_tolerance_m
+        dock = self.scenario.dock
+        assert dock is not None  # checked in __init__
+        b = dock.pose
+        return (
+            math.hypot(pose.x - b.x, pose.y - b.y) <= dock.tolerance_m
+            and abs(_wrap(pose.yaw - b.yaw)) <= dock.tolerance_rad
+        )
+
+    def _add_clearance(self, clearance: float) -> None:
+        if math.isnan(clearance):
+            return
+        self._hist_n += 1
+        k = int(np.searchsorted(CLEARANCE_BIN_EDGES_M, clearance, side="right")) - 1
+        self._hist[min(k, len(self._hist) - 1)] += 1  # the last bin: 2 m and more, inf
+        if math.isfinite(clearance):
+            self._clearances.append(clearance)
+
+    def _inspect(self, t: float, pose: Pose2D, v: np.ndarray, events: list[PrimaryEvent]) -> None:
+        obj = self._object
+        if obj is None or self._inspected:
+            return
+        s = self.settings
+        cx, cy = obj.centre
+        dx, dy = cx - pose.x, cy - pose.y
+        if isinstance(obj, Cylinder):
+            surface = max(0.0, math.hypot(dx, dy) - obj.radius)
+        else:
+            surface = float(polygon_distances(np.array([[pose.x, pose.y]]), obj.corners())[0])
+        near, far = s.inspection_distance_m
+        in_band = near <= surface <= far
+        phi = math.atan2(-dy, -dx)  # polar angle of the robot about the object's centre
+        if not in_band:
+            self._in_visit = False
+            self._last_phi = phi
+            return
+        if not self._in_visit:  # a new visit starts from zero
+            self._in_visit = True
+            self._visit_started = False
+            self._visit_arc = 0.0
+            self._last_phi = phi
+        facing = abs(_wrap(math.atan2(dy, dx) - pose.yaw)) <= math.radians(s.facing_tolerance_deg)
+        sideways = abs(v[1]) >= s.min_sideways_speed and abs(v[1]) > abs(v[0])
+        if facing and sideways:
+            if not self._visit_started:
+                self._visit_started = True
+                events.append(PrimaryEvent("inspection_started", t))
+            self._visit_arc += _wrap(phi - self._last_phi)
+            self._best_arc = max(self._best_arc, abs(self._visit_arc))
+            if abs(self._visit_arc) >= math.radians(s.min_arc_deg) - 1e-12:
+                self._inspected = True
+                self._inspection_s = t - self.t_start
+                events.append(
+                    PrimaryEvent("inspection_done", t, arc_deg=math.degrees(abs(self._visit_arc)))
+                )
+        self._last_phi = phi
+
+    # -- result -----------------------------------------------------------------------
+
+    def outcome(self) -> PrimaryOutcome:
+        """The trial's result, or the trial so far while it runs (see the module notes)."""
+        s = self.settings
+        time_s = self._completion_s if self._done else self.elapsed_s
+        if self._clearances:
+            c = np.asarray(self._clearances)
+            mean, std, cmin = float(c.mean()), float(c.std()), float(c.min())  # Table 7.10
+        else:
+            mean = std = cmin = math.nan
+        legs = np.diff(np.concatenate(([0.0], self._leg_times)))
+        return PrimaryOutcome(
+            completed=self.completed,
+            timed_out=self._timed_out,
+            completion_time_s=float(time_s),
+            collisions=self.collisions,
+            score=float(time_s + s.collision_penalty_s * self.collisions),  # spec section 7
+            path_length_m=self._path_m,
+            clearance_mean_m=mean,
+            clearance_std_m=std,
+            clearance_min_m=cmin,
+            clearance_histogram=tuple(int(c) for c in self._hist),
+            clearance_samples=self._hist_n,
+            inspection_required=s.inspection_required,
+            inspection_done=self._inspected,
+            inspection_arc_deg=self.inspection_arc_deg,
+            inspection_time_s=self._inspection_s,
+            route=s.route,
+            legs_reached=self._leg,
+            leg_times_s=tuple(float(x) for x in legs),
+        )
+
+
+def _wrap(angle: float) -> float:
+    """Angle [rad] wrapped to [-pi, pi)."""
+    return (angle + math.pi) % (2.0 * math.pi) - math.pi
+
+
+def _is_real(value: object) -> bool:
+    return isinstance(value, int | float | np.integer | np.floating) and not isinstance(value, bool)
+
+
+def _is_finite(value: object) -> bool:
+    return _is_real(value) and math.isfinite(value)  # type: ignore[arg-type]
+
+
+def _bad(field: str, message: str, value: object) -> ValueError:
+    return ValueError(f"PrimarySettings.{field}: {message}, got {value!r}")
