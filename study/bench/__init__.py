@@ -18,6 +18,7 @@ from collections.abc import Callable
 # group name -> module implementing run(quick) -> dict
 GROUPS: dict[str, str] = {
     "sim": "study.bench.sim",
+    "autonomy": "study.bench.autonomy",
 }
 
 

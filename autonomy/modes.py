@@ -1,0 +1,87 @@
+"""The registry of control modes: a protocol names a mode, :func:`make_mode` builds it.
+
+A mode module registers a factory under its name with the :func:`register`
+decorator (applied to a class or a function taking keyword settings). The
+modules that register themselves are imported at the bottom of this file, one
+line each, so that importing :mod:`autonomy.modes` is enough to see every mode;
+a new mode adds its module to that line and nothing else here.
+
+Settings reach a mode as keyword arguments (from a protocol file, say);
+:func:`settings_from` turns them into the mode's frozen settings dataclass and
+refuses unknown names with a ``ValueError`` that lists the allowed ones.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from typing import Any, TypeVar
+
+from autonomy.types import Mode
+
+ModeFactory = Callable[..., Mode]
+F = TypeVar("F", bound=ModeFactory)
+S = TypeVar("S")
+
+# mode name -> factory(**settings) -> Mode
+MODES: dict[str, ModeFactory] = {}
+
+
+def register(name: str) -> Callable[[F], F]:
+    """Decorator registering ``factory`` as the mode ``name``.
+
+    Registering a second, different factory under a taken name is refused.
+    """
+
+    def decorator(factory: F) -> F:
+        existing = MODES.get(name)
+        if existing is not None and existing is not factory:
+            raise ValueError(f"mode {name!r} is registered already (by {existing!r})")
+        MODES[name] = factory
+        return factory
+
+    return decorator
+
+
+def available_modes() -> list[str]:
+    """Names of the registered modes, sorted."""
+    return sorted(MODES)
+
+
+def make_mode(name: str, **settings: Any) -> Mode:
+    """Build the mode registered as ``name`` with the given settings.
+
+    Raises
+    ------
+    ValueError
+        For an unknown name (listing the registered ones) or unknown settings.
+    """
+    factory = MODES.get(name)
+    if factory is None:
+        raise ValueError(f"unknown mode {name!r}; registered modes: {', '.join(available_modes())}")
+    return factory(**settings)
+
+
+def settings_from(cls: type[S], values: dict[str, Any], *, where: str) -> S:
+    """Build the settings dataclass ``cls`` from keyword ``values``.
+
+    A field whose default is itself a settings dataclass accepts a dict of its
+    fields (one level per nesting). ``where`` names the owner in error messages,
+    e.g. ``"mode 'reactive_bn'"``.
+    """
+    defaults = cls()
+    allowed = [f.name for f in dataclasses.fields(cls)]
+    unknown = sorted(set(values) - set(allowed))
+    if unknown:
+        raise ValueError(f"{where}: unknown setting {unknown[0]!r}; allowed: {', '.join(allowed)}")
+    converted = {}
+    for key, value in values.items():
+        default = getattr(defaults, key)
+        if dataclasses.is_dataclass(default) and isinstance(value, dict):
+            value = settings_from(type(default), value, where=f"{where}, setting {key!r}")
+        converted[key] = value
+    return dataclasses.replace(defaults, **converted)
+
+
+# Modes that register themselves on import; add a new mode's module here.
+from autonomy import manual, reactive_bn  # noqa: E402, F401, I001

@@ -1,0 +1,270 @@
+"""``asa bench --only autonomy``: timings of the assistance layer (DESIGN.md budgets).
+
+Figures (wall time, BLAS limited to one thread):
+
+- ``reactive_tick_ms`` {p50, p95, p99}: one ``reactive_bn`` tick (environment model,
+  posteriors, the situation's action including the DWA, blending) on observations
+  of the shipped ``cluttered_room`` seen by the simulated robot (``sim.world``)
+  while a scripted driver wanders through it (towards the most open direction)
+  with the reactive mode itself; without ``sim.world`` (or the scene) on a synthetic
+  cluttered room (:func:`cluttered_segments`, two 270-degree scanners as in the
+  scenario defaults).
+- ``dwa_ms`` and ``safety_ms`` {p50, p95}: :func:`autonomy.dwa.dwa` and
+  :func:`autonomy.safety.safe_command` alone on the same observations.
+- ``sogp_updates_per_s``: ``SparseOnlineGP(capacity=500)`` update plus a one-point
+  prediction per second, pre-filled to 500 basis vectors with 7-D inputs (the
+  encoded task feature's size), so updates run at capacity (a novel point then costs
+  a deletion).
+- ``autonomy_observations``: where the observations came from, and
+  ``autonomy_laser_points`` their mean number of laser points.
+
+The contextual mode's figures (``contextual_tick_ms``, ``rollout_ms``) belong to that
+mode and are added with it.
+
+The synthetic room helpers (:func:`cluttered_segments`, :func:`synthetic_observation`)
+are exact 2D ray casting in numpy; the tests of the assistance layer use them too.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+from threadpoolctl import threadpool_limits
+
+from autonomy.dwa import dwa
+from autonomy.reactive_bn import ReactiveBNMode
+from autonomy.safety import footprint_clearance, safe_command, translation_distance
+from autonomy.types import RobotModel
+from sim.types import ImuReading, LaserScan, Observation, Pose2D
+
+# scenario defaults (sim.scenario.DEFAULT_LASERS, LASER_DEFAULTS): name, mount, yaw
+LASER_MOUNTS = (("front", (0.3, 0.0), 0.0), ("rear", (-0.3, 0.0), math.pi))
+
+
+def box_segments(centre: tuple[float, float], size: tuple[float, float], yaw: float = 0.0):
+    """The four sides of a box as segments (4, 2, 2) [m]."""
+    hx, hy = size[0] / 2, size[1] / 2
+    c, s = math.cos(yaw), math.sin(yaw)
+    corners = np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]]) @ np.array([[c, s], [-s, c]])
+    corners += centre
+    return np.stack((corners, np.roll(corners, -1, axis=0)), axis=1)
+
+
+def cast_segments(
+    segments: np.ndarray, origin: np.ndarray, angles: np.ndarray, max_range: float
+) -> np.ndarray:
+    """Exact ranges [m] of beams from ``origin`` at ``angles`` (n,) against segments
+    (k, 2, 2); ``max_range`` where nothing is hit."""
+    d = np.column_stack((np.cos(angles), np.sin(angles)))  # (n, 2)
+    a = segments[:, 0]  # (k, 2)
+    e = segments[:, 1] - a
+    w = a - origin
+    denom = d[:, None, 0] * e[None, :, 1] - d[:, None, 1] * e[None, :, 0]  # (n, k)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = (w[None, :, 0] * e[None, :, 1] - w[None, :, 1] * e[None, :, 0]) / denom
+        s = (w[None, :, 0] * d[:, None, 1] - w[None, :, 1] * d[:, None, 0]) / denom
+    valid = (np.abs(denom) > 1e-12) & (t > 0) & (s >= 0) & (s <= 1)
+    return np.minimum(np.min(np.where(valid, t, np.inf), axis=1, initial=np.inf), max_range)
+
+
+def synthetic_observation(
+    segments: np.ndarray,
+    *,
+    velocity: np.ndarray | None = None,
+    rng: np.random.Generator | None = None,
+    sigma: float = 0.01,
+    max_range: float = 8.0,
+    fov_deg: float = 270.0,
+    resolution_deg: float = 1.0,
+    components: tuple = (),
+) -> Observation:
+    """What a robot at the origin (robot frame = map frame) with the default two
+    scanners sees of ``segments`` (k, 2, 2) [m]; Gaussian range noise ``sigma`` [m]
+    when ``rng`` is given."""
+    n = int(round(fov_deg / resolution_deg)) + 1
+    scans, points = [], []
+    for name, mount, yaw in LASER_MOUNTS:
+        angles = yaw + np.radians(np.linspace(-fov_deg / 2, fov_deg / 2, n))
+        origin = np.array(mount)
+        ranges = cast_segments(segments, origin, angles, max_range)
+        hit = ranges < max_range
+        if rng is not None:
+            ranges = np.where(
+                hit, np.clip(ranges + sigma * rng.standard_normal(n), 0.05, max_range), ranges
+            )
+        scan = LaserScan(name, angles, ranges, origin, max_range)
+        scans.append(scan)
+        points.append(scan.points())
+    return Observation(
+        t=0.0,
+        pose=Pose2D(0.0, 0.0, 0.0),
+        velocity=np.zeros(3) if velocity is None else np.asarray(velocity, dtype=float),
+        scans=tuple(scans),
+        points=np.vstack(points),
+        imu=ImuReading(0.0, np.zeros(2)),
+        components=components,
+    )
+
+
+def cluttered_segments(
+    rng: np.random.Generator,
+    robot: RobotModel,
+    *,
+    n_boxes: int = 10,
+    room: tuple[float, float] = (7.0, 6.0),
+    min_clearance: float = 0.1,
+) -> np.ndarray:
+    """A room of ``room`` [m] around the origin with ``n_boxes`` random boxes, none
+    closer than ``min_clearance`` [m] to the robot's footprint at the origin.
+
+    Returns
+    -------
+    (k, 2, 2) [m] wall and box segments.
+    """
+    offset = rng.uniform(-0.25, 0.25, 2) * np.array(room) / 2
+    segments = [box_segments(tuple(offset), room)]
+    while len(segments) < n_boxes + 1:
+        centre = rng.uniform(-0.45, 0.45, 2) * np.array(room) + offset
+        size, yaw = rng.uniform(0.15, 0.9, 2), rng.uniform(0, math.pi)
+        box = box_segments(tuple(centre), tuple(size), yaw)
+        along = np.linspace(0, 1, 101)[None, :, None]  # <= 1 cm apart on these boxes
+        outline = (box[:, 0, None] + along * (box[:, 1] - box[:, 0])[:, None]).reshape(-1, 2)
+        c, s = math.cos(yaw), math.sin(yaw)
+        robot_in_box = np.all(
+            np.abs([c * -centre[0] + s * -centre[1], -s * -centre[0] + c * -centre[1]]) < size / 2
+        )
+        if (
+            not robot_in_box
+            and footprint_clearance(np.zeros((1, 3)), outline, robot)[0] > min_clearance
+        ):
+            segments.append(box)
+    return np.concatenate(segments)
+
+
+def _percentiles(samples_ms: list[float], qs: tuple[int, ...]) -> dict[str, float]:
+    values = np.percentile(np.asarray(samples_ms), qs)
+    return {f"p{q}": round(float(v), 4) for q, v in zip(qs, values, strict=True)}
+
+
+def _joystick(k: int) -> np.ndarray:
+    """A scripted joystick: mostly forward, weaving sideways, turning now and then."""
+    t = 0.05 * k
+    return np.array(
+        [0.6 + 0.3 * math.sin(0.3 * t), 0.4 * math.sin(0.7 * t), 0.5 * math.sin(0.2 * t)]
+    )
+
+
+_WANDER_DIRECTIONS = np.radians(np.arange(-90.0, 91.0, 15.0))
+
+
+def _wander(obs, robot: RobotModel, k: int) -> np.ndarray:
+    """A driver that wanders through the room: towards the most open of the forward
+    directions (the longest free translation of the footprint), turning that way,
+    weaving a little sideways."""
+    free = np.array(
+        [
+            np.min(translation_distance(obs.points, (math.cos(a), math.sin(a)), robot), initial=8.0)
+            for a in _WANDER_DIRECTIONS
+        ]
+    )
+    best = _WANDER_DIRECTIONS[np.argmax(np.minimum(free, 3.0) - 0.1 * np.abs(_WANDER_DIRECTIONS))]
+    heading = best + 0.3 * math.sin(0.35 * k * robot.dt)
+    return np.array([0.6 * math.cos(heading), 0.6 * math.sin(heading), 0.8 * best])
+
+
+def _world_observations(n: int) -> tuple[list, RobotModel] | None:
+    """Observations of the shipped cluttered room along a drive with the reactive mode."""
+    try:
+        from sim.scenario import load_scenario
+        from sim.world import World
+    except ImportError:
+        return None
+    try:
+        scenario = load_scenario("cluttered_room")
+    except ValueError:
+        return None
+    robot = RobotModel.from_spec(scenario.robot)
+    mode = ReactiveBNMode()
+    mode.reset(robot)
+    observations = []
+    with World(scenario, seed=0) as world:
+        obs = world.reset()
+        for k in range(n):
+            u = _wander(obs, robot, k)
+            observations.append((obs, u))
+            world.apply(mode.step(obs, u).v)
+            world.step()
+            obs = world.sense()
+    return observations, robot
+
+
+def _synthetic_observations(n: int) -> tuple[list, RobotModel]:
+    rng = np.random.default_rng(0)
+    robot = RobotModel.rectangle()
+    observations = []
+    for _ in range(n):
+        segments = cluttered_segments(rng, robot, n_boxes=int(rng.integers(6, 16)))
+        velocity = np.array(
+            [rng.uniform(-0.3, 0.8), rng.uniform(-0.4, 0.4), rng.uniform(-0.5, 0.5)]
+        )
+        obs = synthetic_observation(segments, velocity=velocity, rng=rng)
+        observations.append((obs, _joystick(len(observations))))
+    return observations, robot
+
+
+def _sogp_rate(quick: bool) -> float:
+    from autonomy.sogp import SparseOnlineGP
+
+    rng = np.random.default_rng(1)
+    gp = SparseOnlineGP(capacity=500, length_scales=np.full(7, 0.8), signal_var=1.0, noise_var=0.05)
+    while gp.n_basis_ < 500:
+        x = rng.normal(size=7)
+        gp.update(x, float(np.sign(x[0])))
+    n = 300 if quick else 3000
+    xs = rng.normal(size=(n, 7))
+    ys = np.sign(xs[:, 0])
+    start = time.perf_counter()
+    for x, y in zip(xs, ys, strict=True):
+        gp.update(x, float(y))
+        gp.predict(x[None, :])
+    return n / (time.perf_counter() - start)
+
+
+def run(quick: bool) -> dict:
+    """Measure the assistance layer; see the module docstring for the figures."""
+    with threadpool_limits(limits=1):
+        return _run(quick)
+
+
+def _run(quick: bool) -> dict:
+    n = 150 if quick else 1200
+    found = _world_observations(n)
+    source = "sim.world cluttered_room" if found is not None else "synthetic cluttered room"
+    observations, robot = found if found is not None else _synthetic_observations(n // 4)
+
+    mode = ReactiveBNMode()
+    mode.reset(robot)
+    tick, dwa_ms, safety_ms = [], [], []
+    repeats = max(1, n // len(observations))
+    for k in range(repeats * len(observations)):
+        obs, u = observations[k % len(observations)]
+        start = time.perf_counter()
+        mode.step(obs, u)
+        tick.append((time.perf_counter() - start) * 1e3)
+        start = time.perf_counter()
+        dwa(u, obs.points, obs.velocity, robot)
+        dwa_ms.append((time.perf_counter() - start) * 1e3)
+        start = time.perf_counter()
+        safe_command(u, obs.points, robot)
+        safety_ms.append((time.perf_counter() - start) * 1e3)
+
+    return {
+        "reactive_tick_ms": _percentiles(tick, (50, 95, 99)),
+        "dwa_ms": _percentiles(dwa_ms, (50, 95)),
+        "safety_ms": _percentiles(safety_ms, (50, 95)),
+        "sogp_updates_per_s": round(_sogp_rate(quick), 1),
+        "autonomy_observations": source,
+        "autonomy_laser_points": round(float(np.mean([len(o.points) for o, _ in observations])), 1),
+    }
