@@ -27,10 +27,15 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "scenario": ("study.cli.scenario:scenario", "Inspect scenarios: components, map, PNG."),
     "bench": ("study.cli.bench:bench", "Measure the performance budgets (one JSON object)."),
     "pilot": ("study.cli.pilot:pilot", "The main job: a synthetic pilot study (not built yet)."),
+    "plan": (
+        "study.cli.plan:plan_command",
+        "Counterbalancing: each participant's mode order and a balance check.",
+    ),
     "stats": (
         "study.cli.stats:stats",
         "Repeated-measures ANOVA, sphericity and LSD for any long CSV.",
     ),
+    "replay": ("study.cli.replay:replay", "Open a trial's rerun recording, or --print it."),
 }
 
 

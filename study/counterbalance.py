@@ -1,0 +1,302 @@
+"""Counterbalancing the order of the control modes over the participants of a within-subjects study.
+
+Thesis section 7.6.1.3: "the order of the three control modes was rotated between different
+test participants following six different permutations, to prevent the mode bias from
+bringing up undesired confounding factors" (spec section 7); section 7.5 ran two modes in an
+order "unknown to the participants". Three schemes are offered; each gives participant ``i``
+(from 0) an order of the modes:
+
+- ``"full_permutation"`` (complete counterbalancing, the thesis's design): participant ``i``
+  gets permutation ``i mod k!`` of the modes, in :func:`itertools.permutations` order (the
+  lexicographic order of the positions in the protocol's mode list: for ``(a, b, c)`` the
+  rows are abc, acb, bac, bca, cab, cba). A study of ``n`` participants is completely
+  counterbalanced when ``n`` is a multiple of ``k!``.
+- ``"williams"`` (balanced Latin square, Williams 1949): the first row is
+  ``0, 1, k-1, 2, k-2, ...`` and row ``r`` adds ``r`` to it modulo ``k``; for odd ``k`` the
+  ``k`` mirrored rows follow, ``2k`` rows in all. Over one cycle every mode appears in every
+  position equally often and every ordered pair of different modes is adjacent equally
+  often (first-order carry-over balance). Participant ``i`` gets row ``i mod cycle``.
+- ``"random"`` (simple randomisation): each participant draws a uniformly random
+  permutation from the passed-in generator, independently; the row index reported is that
+  permutation's index in :func:`itertools.permutations` order. Balance is not guaranteed;
+  :func:`balance` reports what was reached.
+
+:func:`balance` counts positions and adjacent pairs for any list of orders and words the
+warnings an experimenter needs: which positions are unbalanced, and how far the number of
+participants is from a whole number of cycles. Pure: no I/O, randomness only through the
+generator passed in.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections import Counter
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+SCHEMES: tuple[str, ...] = ("full_permutation", "williams", "random")
+
+
+def _check_modes(modes: Sequence[str]) -> tuple[str, ...]:
+    modes = tuple(modes)
+    if not modes:
+        raise ValueError("modes: at least one mode is needed, got none")
+    if not all(isinstance(m, str) and m for m in modes):
+        raise ValueError(f"modes: must be non-empty strings, got {list(modes)!r}")
+    duplicates = sorted(m for m, c in Counter(modes).items() if c > 1)
+    if duplicates:
+        raise ValueError(f"modes: must be distinct; {', '.join(duplicates)} appears twice")
+    return modes
+
+
+def _check_scheme(scheme: str) -> None:
+    if scheme not in SCHEMES:
+        raise ValueError(
+            f"counterbalancing scheme: must be one of {', '.join(SCHEMES)}, got {scheme!r}"
+        )
+
+
+def williams_square(k: int) -> list[tuple[int, ...]]:
+    """Rows of a Williams design (balanced Latin square) for ``k`` conditions.
+
+    Parameters
+    ----------
+    k : int
+        Number of conditions, >= 1.
+
+    Returns
+    -------
+    list of tuple of int
+        ``k`` rows for even ``k`` (and ``k == 1``), ``2k`` for odd ``k`` (the square and its
+        mirror image); each row a permutation of ``0..k-1``.
+    """
+    if isinstance(k, bool) or not isinstance(k, int) or k < 1:
+        raise ValueError(f"k: must be an integer >= 1, got {k!r}")
+    first = [0]
+    low, high = 1, k - 1
+    for j in range(1, k):  # 0, 1, k-1, 2, k-2, ...
+        if j % 2:
+            first.append(low)
+            low += 1
+        else:
+            first.append(high)
+            high -= 1
+    rows = [tuple((c + r) % k for c in first) for r in range(k)]
+    if k % 2 and k > 1:
+        rows += [row[::-1] for row in rows]
+    return rows
+
+
+def scheme_rows(modes: Sequence[str], scheme: str) -> list[tuple[str, ...]]:
+    """The orders of one cycle of a deterministic scheme.
+
+    ``full_permutation``: the ``k!`` permutations in :func:`itertools.permutations` order;
+    ``williams``: the rows of :func:`williams_square`. ``random`` has no cycle
+    (``ValueError``).
+    """
+    modes = _check_modes(modes)
+    _check_scheme(scheme)
+    if scheme == "full_permutation":
+        return list(itertools.permutations(modes))
+    if scheme == "williams":
+        return [tuple(modes[j] for j in row) for row in williams_square(len(modes))]
+    raise ValueError("counterbalancing scheme 'random' has no fixed rows; use assign()")
+
+
+def cycle_length(k: int, scheme: str) -> int | None:
+    """Participants per complete cycle of ``scheme`` with ``k`` modes (``None`` for random)."""
+    _check_scheme(scheme)
+    if scheme == "full_permutation":
+        return math.factorial(k)
+    if scheme == "williams":
+        return k if k % 2 == 0 or k == 1 else 2 * k
+    return None
+
+
+def _permutation_index(perm: Sequence[int]) -> int:
+    """Index of a permutation of ``0..k-1`` in :func:`itertools.permutations` order (its
+    Lehmer code read as a factorial-base number)."""
+    k, index = len(perm), 0
+    for i, p in enumerate(perm):
+        smaller_later = sum(1 for q in perm[i + 1 :] if q < p)
+        index += smaller_later * math.factorial(k - 1 - i)
+    return index
+
+
+def assign_indexed(
+    modes: Sequence[str],
+    n: int,
+    scheme: str,
+    *,
+    rng: np.random.Generator | None = None,
+) -> list[tuple[int, tuple[str, ...]]]:
+    """Like :func:`assign`, with each participant's row index (stored as ``order_index``).
+
+    The row index is ``i mod cycle`` for the deterministic schemes and, for ``random``, the
+    drawn permutation's index in :func:`itertools.permutations` order of ``modes``.
+    """
+    modes = _check_modes(modes)
+    _check_scheme(scheme)
+    if isinstance(n, bool) or not isinstance(n, int) or n < 1:
+        raise ValueError(f"participants: must be an integer >= 1, got {n!r}")
+    if scheme == "random":
+        if rng is None:
+            raise ValueError("counterbalancing scheme 'random' needs a numpy Generator (rng)")
+        out = []
+        for _ in range(n):
+            perm = [int(j) for j in rng.permutation(len(modes))]
+            out.append((_permutation_index(perm), tuple(modes[j] for j in perm)))
+        return out
+    rows = scheme_rows(modes, scheme)
+    return [(i % len(rows), rows[i % len(rows)]) for i in range(n)]
+
+
+def assign(
+    modes: Sequence[str],
+    n: int,
+    scheme: str,
+    *,
+    rng: np.random.Generator | None = None,
+) -> list[tuple[str, ...]]:
+    """The order of the modes for each of ``n`` participants.
+
+    Parameters
+    ----------
+    modes : sequence of str
+        The distinct mode names, in the protocol's order (it fixes the row order).
+    n : int
+        Number of participants, >= 1.
+    scheme : {"full_permutation", "williams", "random"}
+    rng : numpy.random.Generator, optional
+        Required for ``"random"``; unused otherwise.
+
+    Returns
+    -------
+    list of tuple of str
+        ``n`` orders; participant ``i`` (from 0) gets element ``i``.
+
+    Raises
+    ------
+    ValueError
+        Fewer than one participant, no or duplicate modes, an unknown scheme, or ``random``
+        without a generator.
+    """
+    return [order for _, order in assign_indexed(modes, n, scheme, rng=rng)]
+
+
+def _counts_text(counts: dict[str, int]) -> str:
+    return ", ".join(f"{m} {c}" for m, c in counts.items())
+
+
+def _rows(first: int, last: int) -> str:
+    """Rows (``order_index`` values, from 0) in words."""
+    return f"row {first}" if first == last else f"rows {first}-{last}"
+
+
+def _times(n: int) -> str:
+    return {0: "never", 1: "once", 2: "twice"}.get(n, f"{n} times")
+
+
+def balance(orders: Sequence[Sequence[str]], *, scheme: str | None = None) -> dict[str, Any]:
+    """Position and carry-over balance of a list of mode orders, JSON-ready.
+
+    Parameters
+    ----------
+    orders : sequence of sequence of str
+        One order per participant, all permutations of the same modes.
+    scheme : str, optional
+        The scheme that made them; adds its cycle and whether ``n`` is a whole number of
+        cycles, and decides ``balanced`` (see Returns).
+
+    Returns
+    -------
+    dict
+        ``modes`` (as in the first order), ``n``, ``position_counts`` (mode -> count per
+        position), ``pair_counts`` ("a>b" -> times ``b`` directly follows ``a``, every ordered
+        pair of different modes listed), ``order_counts`` ("a>b>c" -> participants, for the
+        orders that occur), ``position_balanced``, ``carryover_balanced``,
+        ``fully_counterbalanced`` (every permutation equally often), ``cycle`` (``None``
+        without a deterministic scheme), ``complete_cycles`` (``n`` a multiple of it),
+        ``balanced`` and ``warnings`` (list of str; rows are
+        named by their ``order_index``, from 0). ``balanced`` is
+        ``fully_counterbalanced`` for ``full_permutation``, position and carry-over balance
+        for ``williams`` and for no scheme, and position balance for ``random``.
+
+    Raises
+    ------
+    ValueError
+        No orders, or orders that are not permutations of the same distinct modes.
+    """
+    orders = [tuple(o) for o in orders]
+    if not orders:
+        raise ValueError("orders: at least one participant's order is needed")
+    modes = _check_modes(orders[0])
+    for i, order in enumerate(orders):
+        if sorted(order) != sorted(modes):
+            raise ValueError(
+                f"orders[{i}]: must be a permutation of {', '.join(modes)}, got {list(order)}"
+            )
+    if scheme is not None:
+        _check_scheme(scheme)
+    k, n = len(modes), len(orders)
+    positions = {m: [0] * k for m in modes}
+    pairs = {f"{a}>{b}": 0 for a in modes for b in modes if a != b}
+    for order in orders:
+        for p, m in enumerate(order):
+            positions[m][p] += 1
+        for a, b in itertools.pairwise(order):
+            pairs[f"{a}>{b}"] += 1
+    permutation_counts = dict(Counter(">".join(order) for order in orders))
+
+    position_balanced = all(len({positions[m][p] for m in modes}) == 1 for p in range(k))
+    carryover_balanced = len(set(pairs.values())) <= 1
+    fully = (
+        len(permutation_counts) == math.factorial(k) and len(set(permutation_counts.values())) == 1
+    )
+    cycle = cycle_length(k, scheme) if scheme is not None else None
+    complete = cycle is not None and n % cycle == 0
+
+    warnings: list[str] = []
+    for p in range(k):
+        counts = {m: positions[m][p] for m in modes}
+        if len(set(counts.values())) > 1:
+            warnings.append(f"position {p + 1} is unbalanced: {_counts_text(counts)}")
+    if not carryover_balanced and k > 1:
+        low = min(pairs.values())
+        rare = [pair for pair, c in pairs.items() if c == low]
+        warnings.append(
+            f"carry-over is unbalanced: adjacent pairs occur {low} to {max(pairs.values())} "
+            f"times ({', '.join(rare)} least often)"
+        )
+    if cycle is not None and not complete:
+        whole, rest = divmod(n, cycle)
+        suggestion = " or ".join(str(c * cycle) for c in (whole, whole + 1) if c > 0)
+        warnings.append(
+            f"{n} participants is not a multiple of the {scheme} cycle of {cycle}: "
+            f"{_rows(0, rest - 1)} used {_times(whole + 1)}, {_rows(rest, cycle - 1)} "
+            f"{_times(whole)}; "
+            f"use {suggestion} participants for a balanced design"
+        )
+    if scheme == "full_permutation":
+        balanced = fully
+    elif scheme == "random":
+        balanced = position_balanced
+    else:
+        balanced = position_balanced and carryover_balanced
+    return {
+        "modes": list(modes),
+        "n": n,
+        "position_counts": positions,
+        "pair_counts": pairs,
+        "order_counts": permutation_counts,
+        "position_balanced": position_balanced,
+        "carryover_balanced": carryover_balanced,
+        "fully_counterbalanced": fully,
+        "cycle": cycle,
+        "complete_cycles": complete,
+        "balanced": balanced,
+        "warnings": warnings,
+    }
