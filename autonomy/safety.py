@@ -195,7 +195,7 @@ def translation_distance(
     # n_e . p - lam n_e . u <= c_e for every edge (Cyrus-Beck clipping of that ray)
     num = points @ robot.edge_normals.T - robot.edge_offsets  # (m, e)
     den = robot.edge_normals @ u  # (e,)
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         ratio = num / den
     entering = den > 1e-12
     leaving = den < -1e-12

@@ -404,6 +404,11 @@ class World:
         return self.sense()
 
     @property
+    def client(self) -> int:
+        """The pybullet physics client id of this world."""
+        return self._client
+
+    @property
     def t(self) -> float:
         """Simulated time since the last reset [s]."""
         return self._ticks * self.settings.dt

@@ -14,6 +14,8 @@ from __future__ import annotations
 
 import json
 import math
+import os
+import sys
 from collections import Counter
 from collections.abc import Sequence
 from pathlib import Path
@@ -251,7 +253,12 @@ def list_command(as_json: bool) -> None:
     type=click.Path(dir_okay=False, path_type=Path),
     help="Also draw the scene (map, obstacles, A and B, region, components) to this PNG.",
 )
-def show_command(name_or_file: str, as_json: bool, png: Path | None) -> None:
+@click.option(
+    "--gui",
+    is_flag=True,
+    help="Also open the scene in pybullet's 3D window (needs a display; close it to return).",
+)
+def show_command(name_or_file: str, as_json: bool, png: Path | None, gui: bool) -> None:
     """Show a scenario's summary and every semantic component.
 
     Components are derived from the geometry: doorways (between two walls) and
@@ -271,6 +278,29 @@ def show_command(name_or_file: str, as_json: bool, png: Path | None) -> None:
     click.echo(format_description(summary))
     if png is not None:
         click.echo(f"\nwrote {png}")
+    if gui:
+        show_in_gui(s)
+
+
+def show_in_gui(scenario: Scenario) -> None:
+    """Open the scene with the robot at A in pybullet's GUI until the window is closed."""
+    if not os.environ.get("DISPLAY") and sys.platform.startswith("linux"):
+        raise ValueError("asa scenario show --gui: no display (DISPLAY is not set)")
+    import time
+
+    import pybullet  # imported here: it prints a banner
+
+    from sim.world import World, WorldSettings
+
+    with World(scenario, seed=0, settings=WorldSettings(gui=True)) as world:
+        world.reset()
+        click.echo("pybullet window open; close it (or press Ctrl-C) to return")
+        try:
+            while pybullet.isConnected(physicsClientId=world.client):
+                world.step()
+                time.sleep(world.settings.dt)
+        except (KeyboardInterrupt, pybullet.error):
+            pass
 
 
 @scenario.command("map")
