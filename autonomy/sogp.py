@@ -15,7 +15,9 @@ Computation 14(3), Sec. 3-4 ("C&O" below):
 - ``q = (y - m_x) / (s2_x + noise_var)``, ``r = -1 / (s2_x + noise_var)`` with the current
   predictive mean ``m_x`` and latent variance ``s2_x`` at ``x``;
 - projection ``e_hat = Q k_x`` and novelty ``gamma = k(x, x) - k_x^T e_hat``;
-- ``gamma < novelty_tol``: reduced update without a new BV, ``s = C k_x + e_hat``;
+- ``gamma < novelty_tol * k(x, x)``: reduced update without a new BV,
+  ``s = C k_x + e_hat`` (the tolerance is relative to the signal variance ``k(x, x)``, so it
+  does not depend on the targets' units);
 - otherwise the full update: ``s = (C k_x, 1)``, alpha, C and Q grow by one;
 - ``alpha += q s``, ``C += r s s^T``, ``Q += (e_hat, -1)(e_hat, -1)^T / gamma``;
 - above capacity, the BV with the smallest score ``alpha_i^2 / (Q_ii + C_ii)`` is deleted
@@ -39,6 +41,18 @@ Decisions where the thesis and the brief are silent:
   tenfold until it factors) to stop rounding drift; ``alpha`` and ``C`` are left as they
   are (they carry the data). The latent variance is clamped at 0, so the predictive
   variance is never below ``noise_var``. Deletion scores use ``max(Q_ii + C_ii, tiny)``.
+- At capacity, the scores after a prospective addition are computed first, in O(b). When
+  the new point itself would be the one deleted, adding and deleting it is replaced by the
+  reduced update with ``eta = 1``, which C&O's equations make identical (the test checks
+  it against the verbatim equations); this skips two thirds of the O(b^2) work on most
+  updates once the basis is full.
+- Batch prediction caches the dense symmetric ``C`` and the BVs' norms until the next
+  update (one GEMM instead of BLAS ``symm``, which is slow on thin query blocks);
+  :meth:`SparseOnlineGP.predict_mean` skips the variance, all the score (5.8) needs.
+- All level-2 BLAS work here is memory-bound: a multi-threaded BLAS only slows it down,
+  badly so on a busy 2-core machine (measured 5-8x). Callers that run many updates
+  (training, the benchmark) should limit BLAS to one thread (``threadpoolctl``); this
+  module does not, as ``autonomy`` imports only numpy, scipy and scikit-learn.
 - :meth:`SparseOnlineGP.fit` resets the model and feeds the rows in the given order
   (shuffling is the caller's choice, see the classifier).
 - :func:`fit_hyperparameters` maximises the full GP's log evidence (5.11) with L-BFGS-B on
@@ -59,7 +73,7 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from scipy.linalg import blas, cho_factor, cho_solve
+from scipy.linalg import blas, cho_factor, cho_solve, lapack
 from scipy.optimize import minimize
 
 _TINY = 1e-300
@@ -250,7 +264,10 @@ class SparseOnlineGP:
         x = np.asarray(x, dtype=float)
         if x.shape != self.length_scales.shape:
             raise ValueError(f"x: expected shape {self.length_scales.shape}, got {x.shape}")
-        self._update_scaled(x / self.length_scales, float(y))
+        y = float(y)
+        if not (np.isfinite(y) and np.isfinite(x).all()):
+            raise ValueError("x, y: must be finite (no NaN or inf)")
+        self._update_scaled(x / self.length_scales, y)
         return self
 
     def _update_scaled(self, xs: np.ndarray, y: float) -> None:
@@ -599,14 +616,16 @@ def log_evidence(log_params: np.ndarray, X: np.ndarray, y: np.ndarray) -> tuple[
     sn2 = float(np.exp(theta[d + 1]))
     K = se_ard_kernel(X, X, length_scales=ls, signal_var=sf2)
     A = K + sn2 * np.eye(n)
-    try:
-        L = cho_factor(A, lower=True, check_finite=False)
-    except np.linalg.LinAlgError:
+    L, info = lapack.dpotrf(A, lower=1, clean=1)
+    if info != 0:
         return -np.inf, np.zeros(d + 2)
-    a = cho_solve(L, y, check_finite=False)
-    logdet = 2.0 * np.log(np.diag(L[0])).sum()
+    a = cho_solve((L, True), y, check_finite=False)
+    logdet = 2.0 * np.log(np.diag(L)).sum()
     value = -0.5 * float(y @ a) - 0.5 * logdet - 0.5 * n * np.log(2.0 * np.pi)  # Eq. (5.11)
-    Ainv = cho_solve(L, np.eye(n), check_finite=False)
+    Ainv, info = lapack.dpotri(L, lower=1)  # lower triangle of A^-1, from the factor
+    if info != 0:
+        return -np.inf, np.zeros(d + 2)
+    Ainv = np.tril(Ainv) + np.tril(Ainv, -1).T
     W = np.outer(a, a) - Ainv
     M = W * K
     grad = np.empty(d + 2)

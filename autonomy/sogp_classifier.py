@@ -24,6 +24,11 @@ Decisions where the thesis is silent:
   so the distribution tends to uniform and the entropy to 1 -- the introspection the thesis
   values. If every confidence underflows to 0 the distribution is uniform.
 - :func:`normalised_entropy` uses ``0 log 0 = 0`` and is 0 when there is a single class.
+- :func:`recognise` ranks with the posterior means alone (5.8 needs nothing else) and
+  computes the predictive variance only for the winning candidate and cluster, so a tick
+  costs O(m c b) plus one O(b^2) product instead of O(m c b^2).
+- :func:`recognise` returns the winning cluster as its id (an element of ``classes_``), not
+  its column index.
 - Inputs are used as given; the caller standardises them (``autonomy.features``).
 """
 
