@@ -7,9 +7,13 @@ import os
 
 import numpy as np
 import pytest
+from threadpoolctl import threadpool_limits
 
 os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
 os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
+
+# As `asa` does (study.cli.limit_blas_threads): small matrices, two cores, no contention.
+threadpool_limits(1, user_api="blas")
 
 
 @pytest.fixture

@@ -27,6 +27,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "scenario": ("study.cli.scenario:scenario", "Inspect scenarios: components, map, PNG."),
     "bench": ("study.cli.bench:bench", "Measure the performance budgets (one JSON object)."),
     "pilot": ("study.cli.pilot:pilot", "The main job: a synthetic pilot study (not built yet)."),
+    "demonstrations": (
+        "study.cli.demonstrations:demonstrations",
+        "Record scripted demonstrations of the contextual tasks; summarise them.",
+    ),
     "plan": (
         "study.cli.plan:plan_command",
         "Counterbalancing: each participant's mode order and a balance check.",
@@ -36,6 +40,9 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "Repeated-measures ANOVA, sphericity and LSD for any long CSV.",
     ),
     "replay": ("study.cli.replay:replay", "Open a trial's rerun recording, or --print it."),
+    "run": ("study.cli.run:run", "Run one participant's session of a protocol (headless)."),
+    "db": ("study.cli.db:db", "Study database tools: check integrity and consistency."),
+    "export": ("study.cli.export:export_command", "Write one CSV per database table."),
 }
 
 
@@ -76,10 +83,28 @@ def _one_line(error: BaseException) -> str:
     return " ".join(text.split())
 
 
+def limit_blas_threads() -> None:
+    """One BLAS thread per process unless ``ASA_BLAS_THREADS`` says otherwise.
+
+    The per-tick linear algebra is small (10 candidates, 500 basis vectors): several
+    BLAS threads only contend with each other and with worker processes, which on a
+    2-core machine made the SOGP and the benchmark 5-8 times slower.
+    """
+    from threadpoolctl import threadpool_limits
+
+    threads = os.environ.get("ASA_BLAS_THREADS", "1")
+    if not threads.isdigit() or int(threads) < 1:
+        raise ValueError(
+            f"environment variable ASA_BLAS_THREADS: must be a positive integer, got {threads!r}"
+        )
+    threadpool_limits(int(threads), user_api="blas")
+
+
 def main(argv: list[str] | None = None) -> None:
     """Entry point of the ``asa`` console script."""
     debug = os.environ.get("ASA_DEBUG") == "1"
     try:
+        limit_blas_threads()
         cli.main(args=argv, prog_name="asa", standalone_mode=False)
     except click.exceptions.Abort:
         click.echo("asa: aborted", err=True)
