@@ -74,8 +74,8 @@ from dataclasses import dataclass, replace
 from types import TracebackType
 
 import numpy as np
-import pybullet as p
 
+from sim._pybullet import pybullet as p
 from sim.scenario import LaserSpec, Scenario
 from sim.sensors import CrossSection, Solid, cast, cross_section, scene_solids
 from sim.types import Contact, ImuReading, LaserScan, Observation, Pose2D, SemanticComponent

@@ -288,8 +288,7 @@ def show_in_gui(scenario: Scenario) -> None:
         raise ValueError("asa scenario show --gui: no display (DISPLAY is not set)")
     import time
 
-    import pybullet  # imported here: it prints a banner
-
+    from sim._pybullet import pybullet
     from sim.world import World, WorldSettings
 
     with World(scenario, seed=0, settings=WorldSettings(gui=True)) as world:

@@ -1,0 +1,721 @@
+"""Scripted skills that perform the contextual tasks the way a person with a gamepad
+would (thesis Sec. 7.2.3, 7.4.1-7.4.2; spec section 3), and :class:`HumanStick`, the
+filter that makes an ideal command look like a human hand on a stick.
+
+A skill is reset with a :class:`~tasks.contextual.ContextualTask` and a
+``numpy.random.Generator`` (which draws its random parameters: inspection distance
+and arc, wall distance and length, bypass clearance) and is then asked every control
+tick for a command: ``act(obs) -> SkillStep(u, done, phase)``. ``u`` is a robot-frame
+joystick command in physical units ``(v_x [m/s], v_y [m/s], omega [rad/s])``. Skills
+are composable: a synthetic participant may chain them along a route, resetting one
+skill per task.
+
+What each skill does (decisions where the spec is silent are marked *decided*):
+
+- Doorway and gap crossing: the crossing direction is away from the side the robot
+  is on when it first acts; drive to a pre-point ``pass_distance`` before the
+  passage's centre on its normal, turning to the crossing heading on the way (facing
+  the direction of travel while more than ``face_travel_m`` away, a person drives
+  forwards), then follow the centre line through to the post-point
+  ``pass_distance`` beyond; done there, or (*decided*) as soon as the robot's rear
+  is 0.2 m past the passage and the way on is blocked within ``blocked_distance``.
+- Object inspection: approach the target point (the nearest surface point, spec
+  section 3) to an inspection distance drawn from ``inspection_distance`` while
+  facing it, then move sideways (``v_y``) in the chosen direction, keeping the target
+  point's bearing at zero (``omega``, with a feed-forward of the circling rate) and
+  the distance (``v_x``), until the robot's position angle about the object's
+  centre has swept an arc drawn from ``inspection_arc_deg``. *Decided*: "cw"/"ccw"
+  seen from above; moving to the robot's right while facing the object is ccw.
+- Wall following: the wall's face on the robot's side is found from its surface
+  points (principal axis, *decided*); the robot approaches a line at a distance drawn
+  from ``wall_distance`` from the face (robot centre to face), turns parallel with
+  the wall on the chosen side and follows for a length drawn from ``wall_length``,
+  or until ``wall_end_margin`` before the face ends, or until something standing
+  against the wall blocks the way within ``blocked_distance``; done then.
+- Object bypass: *decided*: the line of travel is the ray from the robot's first
+  position through the object's centre (the recorder heads the robot roughly at the
+  object, so this is "along the initial heading" made robust to a few degrees of
+  heading noise). The robot swerves onto a parallel line with the object on the
+  chosen side, the robot's side ``bypass_clearance`` from the object's circumcircle,
+  facing its direction of travel; done once its rear is past the circumcircle.
+- Robot docking: drive to a pre-point ``dock_pre_distance`` before the dock on its
+  approach normal, align with the normal there (a person stops and lines up before
+  driving under a table), then drive in slowly along the normal until the centre is
+  within ``dock_tolerance`` of the dock centre; done.
+
+Every skill works in the map frame of the *estimated* pose ``obs.pose`` (the
+participant sees the robot on the map) and converts its command into the robot
+frame. Before it is returned, an ideal command passes a guard against the laser
+points ``obs.points`` (people do not drive into walls on purpose): for the wanted
+direction and 16 others up to 1.2 rad either side, the points in the corridor the
+footprint sweeps cap the speed at ``guard_gain * (free - guard_stop)``; the direction
+with the most progress along the wanted one wins (so the robot slows down near
+obstacles and slides past an edge instead of stalling on it); a turn that would
+swing the footprint's corners over a point is held. Every skill stops
+after ``max_ticks`` calls with ``done`` and phase ``"timeout"``.
+
+:class:`HumanStick` (*decided*, after the thesis's average driving speed of about
+0.3 m/s, Sec. 7.2.3): the translation is scaled by ``preferred_speed /
+reference_speed`` (a person who likes to drive faster pushes further for the same
+intention); occasional over- or undershoot episodes (Poisson onsets, a random gain
+held for a random duration); a reaction delay of ``delay_ticks`` (FIFO); low-pass
+filtered Gaussian noise per channel while the stick is deflected (first-order, time
+constant ``noise_tau_s``); a per-channel deadzone and quantisation of the axis to
+``levels`` steps; and finally the robot's limits (``|v_xy| <= max_speed``,
+``|omega| <= max_yaw_rate``). Every tick draws the same number of variates, so the
+output is a deterministic function of the Generator's state and the inputs.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+from sim.types import Observation, Pose2D, SemanticComponent
+from tasks.contextual import TARGET_KIND, ContextualTask
+
+_ZERO = np.zeros(3)
+_ZERO.flags.writeable = False
+
+
+# --------------------------------------------------------------------------- values
+
+
+@dataclass(frozen=True, slots=True)
+class SkillSettings:
+    """How the scripted skills drive (speeds, gains, the tasks' random ranges)."""
+
+    speed: float = 0.4  # [m/s] cruise speed
+    slow_speed: float = 0.25  # [m/s] through passages and under the table
+    side_speed: float = 0.3  # [m/s] sideways during an inspection
+    max_omega: float = 0.8  # [rad/s] a person turns gently
+    k_pos: float = 1.2  # [1/s] position gain
+    k_yaw: float = 1.8  # [1/s] heading gain
+    lookahead: float = 0.7  # [m] carrot distance along a line being followed
+    k_lateral: float = 1.5  # [1/s] lateral gain on a passage's centre line (narrow: precise)
+    face_travel_m: float = 1.0  # [m] farther than this from a way point: face the travel
+    pass_distance: float = 0.8  # [m] pre- and post-point of a crossing from the centre
+    inspection_distance: tuple[float, float] = (0.8, 1.0)  # [m] nearest surface to centre
+    inspection_arc_deg: tuple[float, float] = (120.0, 200.0)  # [deg] arc to sweep
+    wall_distance: tuple[float, float] = (0.5, 0.7)  # [m] wall face to robot centre
+    wall_length: tuple[float, float] = (2.0, 4.0)  # [m] length to follow
+    wall_end_margin: float = 0.6  # [m] stop this far before the face ends
+    bypass_clearance: tuple[float, float] = (0.3, 0.5)  # [m] robot side to circumcircle
+    dock_pre_distance: float = 1.2  # [m] pre-point before the dock centre
+    dock_tolerance: float = 0.08  # [m] done when the centre is this close to the dock's
+    align_tolerance: tuple[float, float] = (0.15, 0.2)  # [m], [rad] to start a crossing
+    half_length: float = 0.3  # [m] footprint half extent along x
+    half_width: float = 0.25  # [m] footprint half extent along y
+    guard_margin: float = 0.03  # [m] widening of the swept corridor
+    guard_stop: float = 0.06  # [m] free distance at which the guard stops the robot
+    guard_gain: float = 1.5  # [1/s] speed <= gain * (free - stop)
+    blocked_distance: float = 0.25  # [m] a crossing ends early when the way on is this tight
+    max_ticks: int = 2400  # calls before "timeout" (120 s at 20 Hz)
+
+    def __post_init__(self) -> None:
+        for name in ("speed", "slow_speed", "side_speed", "max_omega", "k_pos", "k_yaw"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"SkillSettings: field '{name}': must be positive")
+        if self.max_ticks < 1:
+            raise ValueError("SkillSettings: field 'max_ticks': must be at least 1")
+
+
+@dataclass(frozen=True, slots=True)
+class SkillStep:
+    """A skill's answer for one tick."""
+
+    u: np.ndarray  # (3,) robot-frame command (v_x [m/s], v_y [m/s], omega [rad/s])
+    done: bool  # the task is finished (completed, or "timeout")
+    phase: str  # what the skill is doing: "approach", "cross", ..., "done", "timeout"
+
+
+@dataclass(frozen=True, slots=True)
+class WallFace:
+    """The face of a wall segment on one side, in the map frame."""
+
+    point: np.ndarray  # (2,) [m] a point on the face line (the points' mean, moved onto it)
+    tangent: np.ndarray  # (2,) unit direction along the wall
+    normal: np.ndarray  # (2,) unit normal pointing away from the wall, to the chosen side
+    lo: float  # [m] extent of the face along ``tangent`` from ``point``
+    hi: float  # [m]
+
+
+# --------------------------------------------------------------------------- geometry
+
+
+def _wrap(a: float) -> float:
+    return (a + math.pi) % (2 * math.pi) - math.pi
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    n = float(np.hypot(v[0], v[1]))
+    return v / n if n > 1e-12 else np.array([1.0, 0.0])
+
+
+def _yaw(v: np.ndarray) -> float:
+    return math.atan2(float(v[1]), float(v[0]))
+
+
+def _to_robot(pose: Pose2D, vec: np.ndarray) -> np.ndarray:
+    """A map-frame vector (2,) in the robot frame (rotation only)."""
+    c, s = math.cos(pose.yaw), math.sin(pose.yaw)
+    return np.array([c * vec[0] + s * vec[1], -s * vec[0] + c * vec[1]])
+
+
+def _position(pose: Pose2D) -> np.ndarray:
+    return np.array([pose.x, pose.y])
+
+
+def wall_face(points: np.ndarray, position: np.ndarray) -> WallFace:
+    """The face of a wall segment that looks towards ``position``.
+
+    Parameters
+    ----------
+    points : numpy.ndarray
+        (k, 2) [m] the wall component's surface points (both faces or one), map frame.
+    position : numpy.ndarray
+        (2,) [m] where the robot is, map frame.
+
+    Returns
+    -------
+    WallFace
+        The principal axis of the points is the tangent; the face on the robot's side
+        of the axis is the one kept (a wall seen from one side has points on that side).
+    """
+    pts = np.asarray(points, dtype=float).reshape(-1, 2)
+    mean = pts.mean(axis=0)
+    centred = pts - mean
+    _, vecs = np.linalg.eigh(centred.T @ centred)
+    tangent = vecs[:, -1]
+    axis = np.array([-tangent[1], tangent[0]])
+    across = centred @ axis
+    side = 1.0 if float((np.asarray(position) - mean) @ axis) >= 0 else -1.0
+    face = side * across > 1e-6
+    if not np.any(face):  # a one-sided wall seen from behind its points: use them all
+        face = np.ones(len(pts), dtype=bool)
+    offset = float(np.median(across[face]))
+    along = centred[face] @ tangent
+    return WallFace(
+        point=mean + offset * axis,
+        tangent=tangent,
+        normal=side * axis,
+        lo=float(along.min()),
+        hi=float(along.max()),
+    )
+
+
+def _corridor(points: np.ndarray, d: np.ndarray, s: SkillSettings) -> tuple[np.ndarray, np.ndarray]:
+    """Free distances [m] ahead of the footprint and signed lateral offsets [m] (+ left)
+    of the laser points (robot frame) in the corridor it sweeps along unit ``d``."""
+    along = points @ d
+    across = points[:, 1] * d[0] - points[:, 0] * d[1]  # cross(d, p): + left of d
+    front = s.half_length * abs(d[0]) + s.half_width * abs(d[1])  # the box's support along d
+    half = s.half_length * abs(d[1]) + s.half_width * abs(d[0])
+    # points beside the body (behind its front face) are not in the way of this motion
+    inside = (np.abs(across) < half + s.guard_margin) & (along > front - 0.02)
+    return along[inside] - front, across[inside]
+
+
+def free_ahead(points: np.ndarray, direction: np.ndarray, s: SkillSettings) -> float:
+    """Free distance [m] the footprint can travel along robot-frame ``direction`` (2,)
+    before it meets a laser point (``inf`` when the corridor is empty)."""
+    gaps, _ = _corridor(np.asarray(points).reshape(-1, 2), _unit(np.asarray(direction)), s)
+    return float(gaps.min()) if len(gaps) else math.inf
+
+
+def _free_all(points: np.ndarray, dirs: np.ndarray, s: SkillSettings) -> np.ndarray:
+    """:func:`free_ahead` for many unit directions (k, 2) at once -> (k,) [m]."""
+    along = dirs @ points.T  # (k, m)
+    across = dirs[:, :1] * points[:, 1] - dirs[:, 1:] * points[:, 0]
+    ax, ay = np.abs(dirs[:, :1]), np.abs(dirs[:, 1:])
+    front = s.half_length * ax + s.half_width * ay
+    half = s.half_length * ay + s.half_width * ax
+    inside = (np.abs(across) < half + s.guard_margin) & (along > front - 0.02)
+    return np.where(inside, along - front, np.inf).min(axis=1)
+
+
+def _turn_guard(omega: float, points: np.ndarray, s: SkillSettings) -> float:
+    """``omega`` [rad/s], or 0 when turning 0.15 rad that way would sweep the footprint
+    (grown by ``guard_margin``) over a laser point (a box's corners swing out)."""
+    if abs(omega) < 1e-9:
+        return omega
+    reach = math.hypot(s.half_length, s.half_width) + s.guard_margin
+    near = points[np.einsum("ij,ij->i", points, points) < reach * reach]
+    if not len(near):
+        return omega
+    for a in (0.05, 0.1, 0.15):  # seen from the turned robot, points turn the other way
+        c, si = math.cos(a), math.sin(-a if omega > 0 else a)
+        x = c * near[:, 0] - si * near[:, 1]
+        y = si * near[:, 0] + c * near[:, 1]
+        hit = (np.abs(x) < s.half_length + s.guard_margin) & (
+            np.abs(y) < s.half_width + s.guard_margin
+        )
+        if np.any(hit):
+            return 0.0
+    return omega
+
+
+_GUARD_OFFSETS = np.linspace(-1.2, 1.2, 17)  # [rad] directions the guard may take instead
+
+
+def _guard(u: np.ndarray, points: np.ndarray, s: SkillSettings) -> np.ndarray:
+    """Keep the footprint off the laser points (robot frame): of the wanted direction
+    and directions up to 1.2 rad either side, take the one with the most progress in
+    the wanted direction once each is capped to ``guard_gain * (free - guard_stop)``
+    (people steer around what they would hit and slow down near it); rotation is kept."""
+    if len(points) == 0:
+        return u
+    u = np.array([u[0], u[1], _turn_guard(float(u[2]), points, s)])
+    speed = float(np.hypot(u[0], u[1]))
+    if speed < 1e-9:
+        return u
+    base = math.atan2(u[1], u[0])
+    angles = base + _GUARD_OFFSETS
+    dirs = np.column_stack((np.cos(angles), np.sin(angles)))
+    free = _free_all(points, dirs, s)
+    allowed = np.minimum(speed, np.maximum(0.0, s.guard_gain * (free - s.guard_stop)))
+    progress = allowed * np.cos(_GUARD_OFFSETS) - 0.02 * np.abs(_GUARD_OFFSETS)
+    best = int(np.argmax(progress))
+    if progress[best] <= 0.0:
+        return np.array([0.0, 0.0, u[2]])
+    v = dirs[best] * allowed[best]
+    return np.array([v[0], v[1], u[2]])
+
+
+# --------------------------------------------------------------------------- skills
+
+
+class Skill:
+    """Base of the scripted skills: task bookkeeping, the step cap, the guard.
+
+    Subclasses implement ``_setup(obs, comp)`` (first tick: map-frame geometry) and
+    ``_control(obs, comp) -> (u, phase, done)``.
+    """
+
+    task_types: tuple[str, ...] = ()
+
+    def __init__(self, settings: SkillSettings | None = None) -> None:
+        self.settings = SkillSettings() if settings is None else settings
+        self.task: ContextualTask | None = None
+
+    def reset(self, task: ContextualTask, rng: np.random.Generator) -> None:
+        """Start ``task``; ``rng`` draws this performance's random parameters."""
+        if task.type not in self.task_types:
+            raise ValueError(
+                f"{type(self).__name__}: task type {task.type!r} not handled; "
+                f"allowed: {', '.join(self.task_types)}"
+            )
+        self.task = task
+        self._rng = rng
+        self._ticks = 0
+        self._finished: str | None = None
+        self._ready = False
+        self._draw(rng)
+
+    def _draw(self, rng: np.random.Generator) -> None:
+        """Draw the random parameters of one performance."""
+
+    def act(self, obs: Observation) -> SkillStep:
+        """The ideal command for this tick.
+
+        Parameters
+        ----------
+        obs : Observation
+            This tick's observation; ``obs.components`` must contain the target.
+
+        Returns
+        -------
+        SkillStep
+            ``u`` (3,) robot frame [m/s, m/s, rad/s]; once ``done``, ``u`` is zero.
+        """
+        if self.task is None:
+            raise RuntimeError(f"{type(self).__name__}.act called before reset()")
+        if self._finished is not None:
+            return SkillStep(_ZERO, True, self._finished)
+        self._ticks += 1
+        if self._ticks > self.settings.max_ticks:
+            self._finished = "timeout"
+            return SkillStep(_ZERO, True, "timeout")
+        comp = _find(obs, self.task)
+        if not self._ready:
+            self._setup(obs, comp)
+            self._ready = True
+        u, phase, done = self._control(obs, comp)
+        if done:
+            self._finished = phase
+            return SkillStep(_ZERO, True, phase)
+        u = _guard(np.asarray(u, dtype=float), obs.points, self.settings)
+        return SkillStep(u, False, phase)
+
+    # helpers for subclasses ------------------------------------------------
+
+    def _setup(self, obs: Observation, comp: SemanticComponent) -> None:
+        raise NotImplementedError
+
+    def _control(self, obs: Observation, comp: SemanticComponent) -> tuple[np.ndarray, str, bool]:
+        raise NotImplementedError
+
+    def _track(self, pose: Pose2D, goal: np.ndarray, yaw_goal: float, speed: float) -> np.ndarray:
+        """Command towards map point ``goal`` at most ``speed`` while turning to ``yaw_goal``."""
+        s = self.settings
+        e = goal - _position(pose)
+        dist = float(np.hypot(e[0], e[1]))
+        v_map = e / dist * min(speed, s.k_pos * dist) if dist > 1e-9 else np.zeros(2)
+        omega = float(np.clip(s.k_yaw * _wrap(yaw_goal - pose.yaw), -s.max_omega, s.max_omega))
+        v = _to_robot(pose, v_map)
+        return np.array([v[0], v[1], omega])
+
+    def _travel_yaw(self, pose: Pose2D, goal: np.ndarray, final_yaw: float) -> float:
+        """Face the direction of travel while far from ``goal``, else ``final_yaw``."""
+        e = goal - _position(pose)
+        return _yaw(e) if float(np.hypot(*e)) > self.settings.face_travel_m else final_yaw
+
+
+def _find(obs: Observation, task: ContextualTask) -> SemanticComponent:
+    for comp in obs.components:
+        if comp.id == task.target_id:
+            if comp.kind != TARGET_KIND[task.type]:
+                raise ValueError(
+                    f"task target {task.target_id!r}: is a {comp.kind}, "
+                    f"{task.type} needs a {TARGET_KIND[task.type]}"
+                )
+            return comp
+    raise ValueError(f"task target {task.target_id!r}: no such component in the observation")
+
+
+def _map_centre(obs: Observation, comp: SemanticComponent) -> np.ndarray:
+    return obs.pose.to_map_frame(comp.centre)[0]
+
+
+def _map_vector(obs: Observation, vec: np.ndarray) -> np.ndarray:
+    c, s = math.cos(obs.pose.yaw), math.sin(obs.pose.yaw)
+    return np.array([c * vec[0] - s * vec[1], s * vec[0] + c * vec[1]])
+
+
+class CrossingSkill(Skill):
+    """Doorway or gap crossing: line up on the normal, drive through."""
+
+    task_types = ("doorway_crossing", "gap_crossing")
+
+    def _setup(self, obs: Observation, comp: SemanticComponent) -> None:
+        self.centre_ = _map_centre(obs, comp)
+        normal = _unit(_map_vector(obs, comp.normal))
+        side = 1.0 if float((_position(obs.pose) - self.centre_) @ normal) >= 0 else -1.0
+        self.direction_ = -side * normal  # travel away from the side the robot is on
+        self.pre_ = self.centre_ - self.settings.pass_distance * self.direction_
+        self.phase_ = "approach"
+
+    def _control(self, obs: Observation, comp: SemanticComponent) -> tuple[np.ndarray, str, bool]:
+        s, pose = self.settings, obs.pose
+        d, yaw_d = self.direction_, _yaw(self.direction_)
+        rel = _position(pose) - self.centre_
+        along = float(rel @ d)
+        if along >= s.pass_distance:
+            return _ZERO, "done", True
+        if along >= s.half_length + 0.2 and (
+            free_ahead(obs.points, _to_robot(pose, d), s) < s.blocked_distance
+        ):  # through, and something is in the way beyond: a person stops here
+            return _ZERO, "done", True
+        if self.phase_ == "approach":
+            err = float(np.hypot(*(self.pre_ - _position(pose))))
+            if err < s.align_tolerance[0] and abs(_wrap(yaw_d - pose.yaw)) < s.align_tolerance[1]:
+                self.phase_ = "cross"
+            else:
+                yaw = self._travel_yaw(pose, self.pre_, yaw_d)
+                return self._track(pose, self.pre_, yaw, s.speed), "approach", False
+        # along the centre line at slow speed, correcting the offset firmly (people line
+        # up carefully for a narrow passage)
+        across = np.array([-d[1], d[0]])
+        lateral = float(rel @ across)
+        v_map = d * s.slow_speed - across * float(np.clip(s.k_lateral * lateral, -0.2, 0.2))
+        omega = float(np.clip(s.k_yaw * _wrap(yaw_d - pose.yaw), -s.max_omega, s.max_omega))
+        v = _to_robot(pose, v_map)
+        return np.array([v[0], v[1], omega]), "cross", False
+
+
+class InspectionSkill(Skill):
+    """Object inspection: approach, face the object, move sideways around it."""
+
+    task_types = ("object_inspection",)
+
+    def _draw(self, rng: np.random.Generator) -> None:
+        s = self.settings
+        self.distance_ = float(rng.uniform(*s.inspection_distance))
+        self.arc_ = math.radians(float(rng.uniform(*s.inspection_arc_deg)))
+        self.sign_ = 1.0 if self.task.direction == "ccw" else -1.0
+
+    def _setup(self, obs: Observation, comp: SemanticComponent) -> None:
+        self.centre_ = _map_centre(obs, comp)
+        self.phase_ = "approach"
+        self.swept_ = 0.0
+        self.angle_ = 0.0
+
+    def _position_angle(self, pose: Pose2D) -> float:
+        rel = _position(pose) - self.centre_
+        return math.atan2(rel[1], rel[0])
+
+    def _control(self, obs: Observation, comp: SemanticComponent) -> tuple[np.ndarray, str, bool]:
+        s = self.settings
+        target = comp.target_point()  # robot frame
+        dist = float(np.hypot(*target))
+        radial = target / max(dist, 1e-9)
+        bearing = math.atan2(target[1], target[0])
+        err = dist - self.distance_
+        if self.phase_ == "approach":
+            if abs(err) < 0.15 and abs(bearing) < 0.2:
+                self.phase_ = "inspect"
+                self.angle_ = self._position_angle(obs.pose)
+            else:
+                v = radial * float(np.clip(s.k_pos * err, -s.speed, s.speed))
+                omega = float(np.clip(s.k_yaw * bearing, -s.max_omega, s.max_omega))
+                return np.array([v[0], v[1], omega]), "approach", False
+        angle = self._position_angle(obs.pose)
+        self.swept_ += _wrap(angle - self.angle_)
+        self.angle_ = angle
+        if self.sign_ * self.swept_ >= self.arc_:
+            return _ZERO, "done", True
+        # moving to the robot's right while facing the object sweeps counter-clockwise
+        tangent = -self.sign_ * np.array([-radial[1], radial[0]])
+        v = s.side_speed * tangent + radial * float(np.clip(s.k_pos * err, -s.speed, s.speed))
+        centre_dist = max(float(np.hypot(*obs.pose.to_robot_frame(self.centre_)[0])), 0.3)
+        omega_ff = self.sign_ * s.side_speed / centre_dist  # the circling rate
+        omega = float(np.clip(omega_ff + s.k_yaw * bearing, -s.max_omega, s.max_omega))
+        return np.array([v[0], v[1], omega]), "inspect", False
+
+
+class WallFollowingSkill(Skill):
+    """Wall following: approach the wall, turn parallel, drive along it."""
+
+    task_types = ("wall_following",)
+
+    def _draw(self, rng: np.random.Generator) -> None:
+        s = self.settings
+        self.distance_ = float(rng.uniform(*s.wall_distance))
+        self.length_ = float(rng.uniform(*s.wall_length))
+
+    def _setup(self, obs: Observation, comp: SemanticComponent) -> None:
+        pts = obs.pose.to_map_frame(comp.points)
+        self.face_ = face = wall_face(pts, _position(obs.pose))
+        n = face.normal
+        # wall on the robot's left: the robot's left is -n, so its heading is -n turned right
+        if self.task.direction == "left":
+            heading = np.array([-n[1], n[0]])
+        else:
+            heading = np.array([n[1], -n[0]])
+        self.heading_ = heading
+        self.sense_ = 1.0 if float(heading @ face.tangent) >= 0 else -1.0
+        self.end_ = (face.hi if self.sense_ > 0 else -face.lo) - self.settings.wall_end_margin
+        self.phase_ = "approach"
+        self.start_along_ = 0.0
+
+    def _control(self, obs: Observation, comp: SemanticComponent) -> tuple[np.ndarray, str, bool]:
+        s, pose, face = self.settings, obs.pose, self.face_
+        rel = _position(pose) - face.point
+        along = self.sense_ * float(rel @ face.tangent)  # along the heading
+        lateral = float(rel @ face.normal)
+        yaw_h = _yaw(self.heading_)
+        if along >= self.end_:
+            return _ZERO, ("done" if self.phase_ == "follow" else "wall_end"), True
+        if self.phase_ == "approach":
+            aligned = abs(_wrap(yaw_h - pose.yaw)) < s.align_tolerance[1]
+            if abs(lateral - self.distance_) < 0.1 and aligned:
+                self.phase_ = "follow"
+                self.start_along_ = along
+        elif along - self.start_along_ >= self.length_:
+            return _ZERO, "done", True
+        elif free_ahead(obs.points, _to_robot(pose, self.heading_), s) < s.blocked_distance:
+            return _ZERO, "done", True  # something stands against the wall: it "ends" here
+        carrot = (
+            face.point
+            + face.normal * self.distance_
+            + face.tangent * self.sense_ * (along + s.lookahead)
+        )
+        if self.phase_ == "approach" and abs(lateral - self.distance_) > 0.4:
+            yaw = _yaw(carrot - _position(pose))
+        else:
+            yaw = yaw_h
+        return self._track(pose, carrot, yaw, s.speed), self.phase_, False
+
+
+class BypassSkill(Skill):
+    """Object bypass: swerve past the object on the chosen side."""
+
+    task_types = ("object_bypass",)
+
+    def _draw(self, rng: np.random.Generator) -> None:
+        self.clearance_ = float(rng.uniform(*self.settings.bypass_clearance))
+
+    def _setup(self, obs: Observation, comp: SemanticComponent) -> None:
+        s = self.settings
+        self.centre_ = _map_centre(obs, comp)
+        pts = obs.pose.to_map_frame(comp.points) if len(comp.points) else self.centre_[None]
+        self.radius_ = float(np.max(np.hypot(*(pts - self.centre_).T)))
+        self.direction_ = d = _unit(self.centre_ - _position(obs.pose))
+        right = np.array([d[1], -d[0]])
+        # object on the robot's left: the robot passes on the object's right
+        side = right if self.task.direction == "left" else -right
+        self.offset_ = side * (self.radius_ + s.half_width + self.clearance_)
+
+    def _control(self, obs: Observation, comp: SemanticComponent) -> tuple[np.ndarray, str, bool]:
+        s, pose = self.settings, obs.pose
+        d = self.direction_
+        along = float((_position(pose) - self.centre_) @ d)
+        if along >= self.radius_ + s.half_length + 0.2:
+            return _ZERO, "done", True
+        ahead = along + s.lookahead
+        # swerve over about a metre, starting 1.6 m before the circumcircle
+        ramp = float(np.clip((ahead + self.radius_ + 1.6) / 1.0, 0.0, 1.0))
+        carrot = self.centre_ + d * ahead + ramp * self.offset_
+        yaw = _yaw(carrot - _position(pose))
+        phase = "approach" if along < -self.radius_ - s.half_length else "pass"
+        return self._track(pose, carrot, yaw, s.speed), phase, False
+
+
+class DockingSkill(Skill):
+    """Robot docking: line up on the dock's approach normal, drive in under the table."""
+
+    task_types = ("robot_docking",)
+
+    def _setup(self, obs: Observation, comp: SemanticComponent) -> None:
+        self.centre_ = _map_centre(obs, comp)
+        self.normal_ = _unit(_map_vector(obs, comp.normal))
+        self.pre_ = self.centre_ - self.settings.dock_pre_distance * self.normal_
+        self.phase_ = "approach"
+
+    def _control(self, obs: Observation, comp: SemanticComponent) -> tuple[np.ndarray, str, bool]:
+        s, pose = self.settings, obs.pose
+        n, yaw_n = self.normal_, _yaw(self.normal_)
+        pos = _position(pose)
+        if float(np.hypot(*(self.centre_ - pos))) < s.dock_tolerance:
+            return _ZERO, "done", True
+        err = float(np.hypot(*(self.pre_ - pos)))
+        yaw_err = abs(_wrap(yaw_n - pose.yaw))
+        if self.phase_ == "approach" and err < 0.25:
+            self.phase_ = "align"
+        if self.phase_ == "align" and err < 0.08 and yaw_err < 0.08:
+            self.phase_ = "enter"
+        if self.phase_ == "approach":
+            yaw = self._travel_yaw(pose, self.pre_, yaw_n)
+            return self._track(pose, self.pre_, yaw, s.speed), "approach", False
+        if self.phase_ == "align":
+            return self._track(pose, self.pre_, yaw_n, s.slow_speed), "align", False
+        along = float((pos - self.centre_) @ n)
+        carrot = self.centre_ + n * min(along + s.lookahead, 0.0)
+        return self._track(pose, carrot, yaw_n, s.slow_speed), "enter", False
+
+
+SKILLS: dict[str, type[Skill]] = {
+    "doorway_crossing": CrossingSkill,
+    "gap_crossing": CrossingSkill,
+    "object_inspection": InspectionSkill,
+    "object_bypass": BypassSkill,
+    "wall_following": WallFollowingSkill,
+    "robot_docking": DockingSkill,
+}
+
+
+def make_skill(task_type: str, *, settings: SkillSettings | None = None) -> Skill:
+    """A new skill for ``task_type`` (one of ``tasks.contextual.TASK_TYPES``)."""
+    if task_type not in SKILLS:
+        raise ValueError(f"task: unknown task type {task_type!r}; allowed: {', '.join(SKILLS)}")
+    return SKILLS[task_type](settings)
+
+
+# --------------------------------------------------------------------------- the stick
+
+
+@dataclass(frozen=True, slots=True)
+class HumanStickSettings:
+    """A human hand on a gamepad stick (decided; see the module docstring)."""
+
+    preferred_speed: float = 0.35  # [m/s] (thesis Sec. 7.2.3: about 0.3 m/s on average)
+    reference_speed: float = 0.4  # [m/s] the skills' cruise speed it rescales
+    noise_sigma: tuple[float, float, float] = (0.04, 0.04, 0.08)  # [m/s, m/s, rad/s]
+    noise_tau_s: float = 0.4  # [s] time constant of the low-pass noise
+    delay_ticks: int = 4  # reaction delay [ticks] (200 ms at 20 Hz)
+    deadzone: float = 0.05  # fraction of full deflection read as zero, per channel
+    levels: int = 127  # quantisation steps per half axis
+    overshoot_rate_hz: float = 0.25  # [1/s] onsets of over/undershoot episodes
+    overshoot_gain: tuple[float, float] = (0.7, 1.35)  # gain range of an episode
+    overshoot_duration_s: tuple[float, float] = (0.3, 1.0)  # [s]
+    max_speed: float = 1.0  # [m/s] full deflection, translation (thesis 7.6.1.1)
+    max_yaw_rate: float = 1.2  # [rad/s] full deflection, rotation
+    dt: float = 0.05  # [s] control tick
+
+    def __post_init__(self) -> None:
+        for name in ("preferred_speed", "reference_speed", "max_speed", "max_yaw_rate", "dt"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"HumanStickSettings: field '{name}': must be positive")
+        if self.delay_ticks < 0 or self.levels < 1 or not 0 <= self.deadzone < 1:
+            raise ValueError(
+                "HumanStickSettings: fields 'delay_ticks' >= 0, 'levels' >= 1, "
+                "'deadzone' in [0, 1) required"
+            )
+
+
+class HumanStick:
+    """Turns ideal commands into human-like stick commands; deterministic per Generator.
+
+    Call :meth:`reset` with a Generator, then :meth:`filter` once per tick.
+    """
+
+    def __init__(self, settings: HumanStickSettings | None = None) -> None:
+        self.settings = HumanStickSettings() if settings is None else settings
+
+    def reset(self, rng: np.random.Generator) -> None:
+        """Forget the past; ``rng`` draws all of this stick's noise from now on."""
+        s = self.settings
+        self._rng = rng
+        self._fifo: deque[np.ndarray] = deque([_ZERO] * s.delay_ticks)
+        self._noise = np.zeros(3)
+        self._gain = 1.0
+        self._episode_left = 0
+
+    def filter(self, u_ideal: np.ndarray) -> np.ndarray:
+        """The stick command for this tick.
+
+        Parameters
+        ----------
+        u_ideal : numpy.ndarray
+            (3,) the ideal robot-frame command (v_x [m/s], v_y [m/s], omega [rad/s]).
+
+        Returns
+        -------
+        numpy.ndarray
+            (3,) what the hand actually commands, within the robot's limits.
+        """
+        s = self.settings
+        if not hasattr(self, "_rng"):
+            raise RuntimeError("HumanStick.filter called before reset()")
+        z = self._rng.standard_normal(3)
+        onset, g, dur = self._rng.random(3)  # always three, to keep the stream aligned
+        u = np.array(u_ideal, dtype=float)
+        u[:2] *= s.preferred_speed / s.reference_speed
+        if self._episode_left > 0:
+            self._episode_left -= 1
+        else:
+            self._gain = 1.0
+            if onset < s.overshoot_rate_hz * s.dt:
+                lo, hi = s.overshoot_gain
+                self._gain = lo + g * (hi - lo)
+                d_lo, d_hi = s.overshoot_duration_s
+                self._episode_left = round((d_lo + dur * (d_hi - d_lo)) / s.dt)
+        u *= self._gain
+        self._fifo.append(u)
+        u = self._fifo.popleft()
+        a = math.exp(-s.dt / s.noise_tau_s)
+        self._noise = a * self._noise + math.sqrt(1 - a * a) * np.asarray(s.noise_sigma) * z
+        if np.any(np.abs(u) > 1e-9):  # a hand off the stick does not tremble
+            u = u + self._noise
+        full = np.array([s.max_speed, s.max_speed, s.max_yaw_rate])
+        axis = np.clip(u / full, -1.0, 1.0)
+        axis = np.where(np.abs(axis) < s.deadzone, 0.0, axis)
+        axis = np.round(axis * s.levels) / s.levels
+        out = axis * full
+        speed = float(np.hypot(out[0], out[1]))
+        if speed > s.max_speed:
+            out[:2] *= s.max_speed / speed
+        return out
