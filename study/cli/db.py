@@ -1,0 +1,44 @@
+"""``asa db check``: integrity and consistency of a study database
+(:func:`study.dbtools.check`)."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import click
+
+
+@click.group("db")
+def db() -> None:
+    """Study database tools."""
+
+
+@db.command("check")
+@click.option(
+    "--db",
+    "path",
+    required=True,
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Study database (SQLite file).",
+)
+@click.option("--json", "as_json", is_flag=True, help="One JSON object on stdout.")
+@click.option("--no-verify", is_flag=True, help="Skip `rerun rrd verify` on the recordings.")
+def check_command(path: Path, as_json: bool, no_verify: bool) -> None:
+    """Check a study database: every completed trial has its samples (~20 per simulated
+    second), its events, its outcome, its recording (verified with rerun) and, for main
+    trials, its questionnaire; no orphan rows; no trial left running outside a running
+    session.
+
+    Exit status 0 when clean, 1 with a report of the problems, 2 on bad input.
+    """
+    from study.dbtools import check
+
+    report = check(path, verify_recordings=not no_verify)
+    if as_json:
+        click.echo(json.dumps(report.as_dict(), indent=2))
+    else:
+        click.echo(report.text())
+    if not report.clean:
+        sys.exit(1)

@@ -1,0 +1,31 @@
+"""``asa export``: one CSV per table of a study database (:func:`study.dbtools.export`)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+
+@click.command("export")
+@click.option(
+    "--db",
+    "path",
+    required=True,
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Study database (SQLite file).",
+)
+@click.option(
+    "--out",
+    required=True,
+    type=click.Path(file_okay=False, path_type=Path),
+    help="Folder for the CSV files (created if missing).",
+)
+def export_command(path: Path, out: Path) -> None:
+    """Write one CSV per table (study, participant, session, trial, sample, event,
+    question, response, meta) into --out; JSON columns as JSON text."""
+    from study.dbtools import export
+
+    written = export(path, out)
+    for name, n in written.items():
+        click.echo(f"{out / (name + '.csv')}: {n} rows")

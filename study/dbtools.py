@@ -1,0 +1,321 @@
+"""Checking and exporting a study database: ``asa db check`` and ``asa export``.
+
+:func:`check` looks for what the session engine promises (DESIGN.md, "Data"; issue 4):
+
+- every completed trial has its samples, one per tick at 20 Hz with contiguous tick
+  numbers and as many as its duration asks (``duration * 20``, within two ticks), its
+  ``trial_started`` and ``trial_ended`` events, its outcome fields (driving trials), and,
+  for a main trial of a completed session whose protocol asks for a questionnaire after
+  each trial, its NASA-TLX ratings (and the 15 pairwise choices when weights are asked);
+- no orphans: samples, events, questions and responses whose trial, session or
+  participant does not exist, trials without their participant or session;
+- no trial left ``running`` outside a ``running`` session;
+- the recording of every completed trial exists beside the database and passes
+  ``rerun rrd verify`` (:func:`study.recording.verify`; ``verify_recordings=False`` skips
+  the verification but still checks that the file exists).
+
+Decisions where the spec is silent: the sample count is checked against the largest
+sample time (``t_max * 20``) rather than the wall-clock start and end (a paused trial
+stops simulated time); a trial's duration tolerance is two ticks. The protocol is read
+back from ``study.protocol_text`` to know whether questionnaires are expected; a text
+that no longer validates (e.g. a mode no longer registered) only skips that check.
+
+:func:`export` writes one CSV per table (``<table>.csv``), columns in the table's order,
+JSON columns as JSON text, times in ISO 8601, NULL as an empty field.
+"""
+
+from __future__ import annotations
+
+import csv
+import datetime as dt
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from sqlalchemy import JSON, func, select
+from sqlalchemy.orm import Session
+
+from questionnaires import nasa_tlx
+from study.recording import verify
+from study.storage import (
+    Base,
+    Event,
+    Participant,
+    Question,
+    Response,
+    Sample,
+    SessionRow,
+    Trial,
+    database_url,
+    get_study,
+    open_database,
+)
+
+DT = 0.05  # [s] control tick
+TICK_TOLERANCE = 2  # ticks
+
+
+@dataclass(frozen=True, slots=True)
+class CheckReport:
+    """What :func:`check` found."""
+
+    database: str
+    problems: tuple[str, ...]
+    counts: dict[str, int] = field(default_factory=dict)  # rows per table, checked trials
+
+    @property
+    def clean(self) -> bool:
+        return not self.problems
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "database": self.database,
+            "clean": self.clean,
+            "problems": list(self.problems),
+            "counts": dict(self.counts),
+        }
+
+    def text(self) -> str:
+        lines = [
+            f"{self.database}: " + ("clean" if self.clean else f"{len(self.problems)} problems")
+        ]
+        lines.append("  " + ", ".join(f"{k} {v}" for k, v in self.counts.items()))
+        lines += [f"  - {p}" for p in self.problems]
+        return "\n".join(lines)
+
+
+def _folder(db: str | Path) -> Path:
+    url = database_url(db)
+    if url.startswith("sqlite:///"):
+        return Path(url[len("sqlite:///") :]).parent
+    return Path.cwd()
+
+
+def _after_trial(protocol_text: str) -> tuple[bool, str] | None:
+    """(questionnaire after main trials?, weights) from a stored protocol, None if unreadable."""
+    from study.protocol import parse_protocol
+
+    try:
+        protocol = parse_protocol(protocol_text, "<stored protocol>")
+    except ValueError:
+        return None
+    after = protocol.main.after_trial
+    return (after is not None, after.weights if after is not None else "raw")
+
+
+def _orphans(s: Session, problems: list[str]) -> None:
+    def missing(child: Any, column: Any, parent: Any, label: str) -> None:
+        rows = s.execute(
+            select(child.id, column)
+            .outerjoin(parent, column == parent.id)
+            .where(column.is_not(None), parent.id.is_(None))
+            .limit(5)
+        ).all()
+        for row_id, ref in rows:
+            problems.append(f"{label} {row_id}: refers to a missing row {ref}")
+
+    missing(Sample, Sample.trial_id, Trial, "sample")
+    missing(Event, Event.trial_id, Trial, "event")
+    missing(Event, Event.session_id, SessionRow, "event")
+    missing(Question, Question.trial_id, Trial, "question")
+    missing(Response, Response.trial_id, Trial, "response")
+    missing(Response, Response.participant_id, Participant, "response")
+    missing(Trial, Trial.session_id, SessionRow, "trial")
+    missing(Trial, Trial.participant_id, Participant, "trial")
+    missing(SessionRow, SessionRow.participant_id, Participant, "session")
+
+
+def check(db: str | Path, *, verify_recordings: bool = True) -> CheckReport:
+    """Integrity and consistency of a study database (see the module docstring).
+
+    Raises
+    ------
+    ValueError
+        When the database is not an asa-study database (names it).
+    FileNotFoundError
+        When the SQLite file does not exist.
+    """
+    engine = open_database(db, create=False)
+    problems: list[str] = []
+    counts: dict[str, int] = {}
+    folder = _folder(db)
+    try:
+        with Session(engine) as s:
+            for table in Base.metadata.sorted_tables:
+                counts[table.name] = int(s.scalar(select(func.count()).select_from(table)) or 0)
+            study = get_study(s)
+            if study is None:
+                problems.append("study: no study row (an empty database)")
+                return CheckReport(str(db), tuple(problems), counts)
+            after = _after_trial(study.protocol_text)
+            _orphans(s, problems)
+            sessions = {r.id: r for r in s.scalars(select(SessionRow))}
+            stats = {
+                tid: (n, lo, hi, tmax)
+                for tid, n, lo, hi, tmax in s.execute(
+                    select(
+                        Sample.trial_id,
+                        func.count(),
+                        func.min(Sample.tick),
+                        func.max(Sample.tick),
+                        func.max(Sample.t),
+                    ).group_by(Sample.trial_id)
+                )
+            }
+            kinds: dict[int, set[str]] = {}
+            for tid, kind in s.execute(
+                select(Event.trial_id, Event.kind).where(Event.trial_id.is_not(None)).distinct()
+            ):
+                kinds.setdefault(tid, set()).add(kind)
+            tlx: dict[int, set[str]] = {}
+            for tid, item in s.execute(
+                select(Response.trial_id, Response.item).where(
+                    Response.instrument == nasa_tlx.INSTRUMENT_ID, Response.trial_id.is_not(None)
+                )
+            ):
+                tlx.setdefault(tid, set()).add(item)
+            main_trials: dict[int, list[Trial]] = {}
+            checked = 0
+            for trial in s.scalars(select(Trial).order_by(Trial.id)):
+                where = f"trial {trial.id} ({trial.phase} #{trial.ordinal})"
+                session = sessions.get(trial.session_id)
+                if (
+                    trial.status == "running"
+                    and session is not None
+                    and session.status != "running"
+                ):
+                    problems.append(f"{where}: still running in a session that is {session.status}")
+                if trial.status != "completed":
+                    continue
+                checked += 1
+                if trial.phase == "main":
+                    main_trials.setdefault(trial.session_id, []).append(trial)
+                n, lo, hi, tmax = stats.get(trial.id, (0, None, None, None))
+                if n == 0:
+                    problems.append(f"{where}: completed but has no samples")
+                else:
+                    if hi - lo + 1 != n:
+                        problems.append(
+                            f"{where}: sample ticks {lo}..{hi} are not contiguous ({n})"
+                        )
+                    expected = round(tmax / DT)
+                    if abs(n - expected) > TICK_TOLERANCE:
+                        problems.append(
+                            f"{where}: {n} samples for {tmax:.2f} s (expected ~{expected} at 20 Hz)"
+                        )
+                    if trial.completion_time_s is not None and trial.phase != "baseline":
+                        if n < round(trial.completion_time_s / DT) - TICK_TOLERANCE:
+                            problems.append(
+                                f"{where}: {n} samples for a completion time of "
+                                f"{trial.completion_time_s:.2f} s"
+                            )
+                missing_events = {"trial_started", "trial_ended"} - kinds.get(trial.id, set())
+                if missing_events:
+                    problems.append(f"{where}: missing events {', '.join(sorted(missing_events))}")
+                if trial.ended_at is None:
+                    problems.append(f"{where}: completed without ended_at")
+                if trial.phase != "baseline" and (
+                    trial.completed_task is None
+                    or trial.completion_time_s is None
+                    or trial.collisions is None
+                    or trial.score is None
+                ):
+                    problems.append(f"{where}: completed without its outcome fields")
+                _check_recording(trial, folder, verify_recordings, problems, where)
+            # questionnaires after main trials of completed sessions
+            if after is not None and after[0]:
+                for session_id, trials in main_trials.items():
+                    session = sessions.get(session_id)
+                    if session is None or session.status != "completed":
+                        continue
+                    last = max(t.ordinal for t in trials)
+                    for trial in trials:
+                        items = tlx.get(trial.id, set())
+                        where = f"trial {trial.id} (main #{trial.ordinal})"
+                        if not set(nasa_tlx.SUBSCALE_IDS) <= items:
+                            problems.append(f"{where}: NASA-TLX ratings missing")
+                        pairs = {i for i in items if i.startswith("pair:")}
+                        want_pairs = after[1] == "per_trial" or (
+                            after[1] == "once" and trial.ordinal == last
+                        )
+                        if want_pairs and len(pairs) != nasa_tlx.N_PAIRS:
+                            problems.append(
+                                f"{where}: {len(pairs)} NASA-TLX pairwise choices, expected "
+                                f"{nasa_tlx.N_PAIRS}"
+                            )
+            counts["trials_checked"] = checked
+    finally:
+        engine.dispose()
+    return CheckReport(str(db), tuple(problems), counts)
+
+
+def _check_recording(
+    trial: Trial, folder: Path, verify_recordings: bool, problems: list[str], where: str
+) -> None:
+    if not trial.recording_path:
+        problems.append(f"{where}: no recording path")
+        return
+    path = Path(trial.recording_path)
+    path = path if path.is_absolute() else folder / path
+    if not path.is_file():
+        problems.append(f"{where}: recording {trial.recording_path} is missing")
+        return
+    if verify_recordings:
+        try:
+            verify(path)
+        except (ValueError, FileNotFoundError) as error:
+            problems.append(f"{where}: {' '.join(str(error).split())}")
+
+
+# ------------------------------------------------------------------------- export
+
+
+def _cell(value: Any, is_json: bool) -> str:
+    if value is None:
+        return ""
+    if is_json:
+        return json.dumps(value, sort_keys=True)
+    if isinstance(value, dt.datetime):
+        return value.isoformat()
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float):
+        return repr(value) if math.isfinite(value) else ""
+    return str(value)
+
+
+def export(db: str | Path, out: str | Path) -> dict[str, int]:
+    """Write one CSV per table of the study database into folder ``out``.
+
+    Returns
+    -------
+    dict
+        Table name -> rows written.
+    """
+    engine = open_database(db, create=False)
+    folder = Path(out)
+    if folder.exists() and not folder.is_dir():
+        raise ValueError(f"{out}: --out must be a folder, and this is a file")
+    folder.mkdir(parents=True, exist_ok=True)
+    written: dict[str, int] = {}
+    try:
+        with engine.connect() as conn:
+            for table in Base.metadata.sorted_tables:
+                columns = list(table.columns)
+                json_cols = [isinstance(c.type, JSON) for c in columns]
+                n = 0
+                with open(folder / f"{table.name}.csv", "w", newline="", encoding="utf-8") as f:
+                    writer = csv.writer(f)
+                    writer.writerow([c.name for c in columns])
+                    result = conn.execution_options(stream_results=True).execute(
+                        select(table).order_by(*table.primary_key.columns)
+                    )
+                    for row in result:
+                        writer.writerow([_cell(v, j) for v, j in zip(row, json_cols, strict=True)])
+                        n += 1
+                written[table.name] = n
+    finally:
+        engine.dispose()
+    return written

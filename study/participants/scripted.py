@@ -1,0 +1,388 @@
+"""A scripted participant: a deterministic test driver for the session engine.
+
+Not a model of people (that is the synthetic participant's job): it uses the true map of
+the scene to plan, and it exists so that tests and ``asa run --input scripted`` can drive
+every phase of a protocol headless.
+
+Behaviour (issue 4, the session engine's brief):
+
+- **Route.** The route's goals (``"dock"`` = pose B, ``"start"`` = pose A) are joined by
+  shortest paths on the occupancy grid (:func:`sim.occupancy.shortest_path`) that keep a
+  clearance of half the robot's width plus a margin; a larger clearance is tried first
+  (so that turning on the spot is safe), a smaller one only where a passage needs it.
+- **Following.** Holonomic pure pursuit: the command points at a look-ahead point on the
+  path at ``speed`` [m/s], slowing down towards a goal; the heading follows the direction
+  of travel, and turns to B's heading over the last ``align_distance_m`` before the dock.
+- **Inspection.** When the trial asks for it, the plan goes first to a point on a circle
+  around the inspection object (``orbit_distance_m`` from its surface, inside
+  :class:`tasks.primary.PrimarySettings`'s distance band) from which an arc of
+  ``min_arc_deg + arc_margin_deg`` is free of obstacles, turns to face the object, and
+  drives sideways around it (facing it) for that arc, then goes on to B.
+- **Questions.** Each question on the screen is answered ``answer_delay_s`` after it first
+  appeared, correctly with probability ``accuracy`` (a draw from the participant's
+  generator per question); the arithmetic is read from the question text.
+- **Questionnaires.** Valid values drawn uniformly from each item's allowed values.
+
+Deterministic for a given generator seed: every draw comes from the passed-in
+``numpy.random.Generator``; grids and plans are cached per scenario.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Mapping, Sequence
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+
+from sim.occupancy import OccupancyGrid, build_grid, clearance_map, inflate, shortest_path
+from sim.scenario import Cylinder, Scenario
+from sim.types import Observation, Pose2D
+from study.types import ParticipantInput, ScreenState, TrialInfo
+
+_QUESTION = re.compile(r"^\s*(\d+)\s*([+-])\s*(\d+)\s*=\s*(\d+)")
+
+
+@dataclass(frozen=True, slots=True)
+class ScriptedSettings:
+    """How the scripted participant drives and answers (change with ``dataclasses.replace``)."""
+
+    speed: float = 0.45  # [m/s] cruising speed
+    lookahead_m: float = 0.35  # [m] pure-pursuit look-ahead distance
+    yaw_gain: float = 2.5  # [1/s] heading P gain
+    stop_tolerance_m: float = 0.05  # [m] a goal pose is reached this close
+    align_distance_m: float = 1.2  # [m] turn to B's heading over this last stretch
+    clearances_m: tuple[float, ...] = (0.44, 0.38, 0.33, 0.29)  # tried in order for A*
+    centre_clearance_m: float = 0.6  # [m] path points nearer obstacles are pushed away
+    orbit_distance_m: float = 0.8  # [m] from the inspection object's surface
+    orbit_speed: float = 0.3  # [m/s] sideways while inspecting
+    arc_margin_deg: float = 30.0  # [deg] driven beyond the required arc
+    answer_delay_s: float = 1.2  # [s] from a question appearing to the answer
+    accuracy: float = 0.9  # probability of a right answer
+
+    def __post_init__(self) -> None:
+        for name in ("speed", "lookahead_m", "yaw_gain", "orbit_speed", "answer_delay_s"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise ValueError(f"ScriptedSettings: field '{name}': must be > 0, got {value!r}")
+        if not 0.0 <= self.accuracy <= 1.0:
+            raise ValueError(
+                f"ScriptedSettings: field 'accuracy': must be in [0, 1], got {self.accuracy!r}"
+            )
+
+
+def _wrap(angle: float) -> float:
+    return (angle + math.pi) % (2.0 * math.pi) - math.pi
+
+
+def _clip(value: float, limit: float) -> float:
+    return max(-limit, min(limit, value))
+
+
+@dataclass(frozen=True, slots=True)
+class _PathLeg:
+    points: np.ndarray  # (k, 2) [m] map frame
+    final_yaw: float | None  # [rad] heading to reach at the end (None: any)
+    stop: bool  # come to rest at the end (a goal), else pass through
+    face: tuple[float, float] | None = None  # turn to face this point near the end
+
+
+@dataclass(frozen=True, slots=True)
+class _OrbitLeg:
+    centre: tuple[float, float]  # [m]
+    radius: float  # [m] of the robot centre about ``centre``
+    direction: int  # +1 counter-clockwise, -1 clockwise
+    arc: float  # [rad] to sweep
+
+
+def answer_is_correct(text: str) -> bool:
+    """Whether the shown answer of a question text ``"47 + 38 = 85 ?"`` is right."""
+    m = _QUESTION.match(text)
+    if m is None:
+        raise ValueError(f"question text: not 'a op b = c ?', got {text!r}")
+    a, op, b, shown = int(m[1]), m[2], int(m[3]), int(m[4])
+    return (a + b if op == "+" else a - b) == shown
+
+
+class ScriptedParticipant:
+    """A deterministic test driver behind the participant interface.
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+        The only source of randomness (answers, questionnaires).
+    settings : ScriptedSettings, optional
+        Defaults to ``ScriptedSettings()``.
+    """
+
+    kind = "scripted"
+
+    def __init__(
+        self, rng: np.random.Generator, *, settings: ScriptedSettings | None = None
+    ) -> None:
+        self.settings = settings if settings is not None else ScriptedSettings()
+        self.parameters: dict[str, Any] = {
+            k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self.settings).items()
+        }
+        self._rng = rng
+        self._grids: dict[str, OccupancyGrid] = {}
+        self._maps: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+        self._legs: list[_PathLeg | _OrbitLeg] = []
+        self._leg = 0
+        self._progress = 0
+        self._swept = 0.0
+        self._last_phi = math.nan
+        self._drive = False
+        self._max_speed = 1.0
+        self._max_yaw_rate = 1.2
+        self._question: str | None = None
+        self._question_seen_t = math.nan
+        self._question_right = True
+        self._answered: str | None = None
+        self.texts_read: list[str] = []
+
+    # ------------------------------------------------------------ non-driving
+
+    def read(self, text: str) -> None:
+        """Acknowledge a text at once (kept in ``texts_read``)."""
+        self.texts_read.append(text)
+
+    def fill(self, instrument: Any, *, context: Mapping[str, Any]) -> dict[str, Any]:
+        """Answer every item with a value drawn uniformly from what it allows."""
+        answers: dict[str, Any] = {}
+        for item in instrument.items:
+            if item.kind == "number":
+                answers[item.id] = int(self._rng.integers(item.minimum, item.maximum + 1))
+            else:
+                answers[item.id] = item.values[int(self._rng.integers(len(item.values)))]
+        return answers
+
+    def choose(self, pairs: Sequence[tuple[str, str]]) -> dict[tuple[str, str], str]:
+        """Pick one member of each pair uniformly at random."""
+        return {(a, b): (a if self._rng.random() < 0.5 else b) for a, b in pairs}
+
+    # ------------------------------------------------------------ planning
+
+    def _grid(self, scenario: Scenario) -> OccupancyGrid:
+        key = scenario.source or scenario.name
+        if key not in self._grids:
+            self._grids[key] = build_grid(scenario)
+        return self._grids[key]
+
+    def _clearance(self, scenario: Scenario) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        key = "clearance:" + (scenario.source or scenario.name)
+        if key not in self._maps:
+            cm = clearance_map(self._grid(scenario))
+            gy, gx = np.gradient(np.minimum(cm, 2.0))
+            self._maps[key] = (cm, gx, gy)
+        return self._maps[key]
+
+    def _path(self, scenario: Scenario, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        grid = self._grid(scenario)
+        for clearance in self.settings.clearances_m:
+            path = shortest_path(grid, a, b, clearance_m=clearance)
+            if path is not None:
+                break
+        else:
+            raise ValueError(f"scripted participant: no path from {a.tolist()} to {b.tolist()}")
+        pts = np.vstack((a, path[1:-1], b)) if len(path) > 2 else np.vstack((a, b))
+        return self._centred(scenario, pts)
+
+    def _centred(self, scenario: Scenario, pts: np.ndarray) -> np.ndarray:
+        """Push inner path points away from obstacles (A* paths hug the inflated walls),
+        then smooth them; the ends stay where they are."""
+        if len(pts) < 5:
+            return pts
+        grid = self._grid(scenario)
+        cm, gx, gy = self._clearance(scenario)
+        rows, cols = cm.shape
+        out = pts.copy()
+        inner = slice(2, len(pts) - 2)
+        for _ in range(12):
+            rc = grid.world_to_cell(out[inner])
+            r = np.clip(rc[:, 0], 0, rows - 1)
+            c = np.clip(rc[:, 1], 0, cols - 1)
+            g = np.column_stack((gx[r, c], gy[r, c]))
+            norm = np.linalg.norm(g, axis=1)
+            move = (cm[r, c] < self.settings.centre_clearance_m) & (norm > 1e-9)
+            step = np.zeros_like(g)
+            step[move] = g[move] / norm[move, None] * 0.02
+            out[inner] += step
+        kernel = np.ones(5) / 5.0
+        smooth = out.copy()
+        for k in range(2):
+            smooth[2:-2, k] = np.convolve(out[:, k], kernel, mode="valid")
+        return smooth
+
+    def _orbit_plan(
+        self, scenario: Scenario, grid: OccupancyGrid, arc: float, a: np.ndarray, b: np.ndarray
+    ) -> tuple[np.ndarray, _OrbitLeg]:
+        element = scenario.element(scenario.inspection_object)
+        centre = np.asarray(element.centre, dtype=float)
+        if isinstance(element, Cylinder):
+            size = element.radius
+        else:
+            size = 0.5 * math.hypot(*element.size)
+        radius = size + self.settings.orbit_distance_m
+        free = inflate(grid, max(self.settings.clearances_m))
+        best: tuple[float, np.ndarray, _OrbitLeg] | None = None
+        steps = max(2, int(math.degrees(arc) / 5.0))
+        for start_deg in range(0, 360, 10):
+            theta0 = math.radians(start_deg)
+            for direction in (1, -1):
+                angles = theta0 + direction * np.linspace(0.0, arc, steps + 1)
+                pts = centre + radius * np.column_stack((np.cos(angles), np.sin(angles)))
+                if not np.all(free.is_free(pts)):
+                    continue
+                cost = float(np.linalg.norm(pts[0] - a) + np.linalg.norm(pts[-1] - b))
+                if best is None or cost < best[0]:
+                    leg = _OrbitLeg((float(centre[0]), float(centre[1])), radius, direction, arc)
+                    best = (cost, pts[0], leg)
+        if best is None:
+            raise ValueError(
+                f"scripted participant: no free arc around {scenario.inspection_object!r}"
+            )
+        return best[1], best[2]
+
+    def begin_trial(self, info: TrialInfo) -> None:
+        """Plan the trial's route (and inspection) on the scene's occupancy grid."""
+        self._legs, self._leg, self._progress = [], 0, 0
+        self._question, self._answered = None, None
+        self._drive = info.drive
+        if not info.drive:
+            return
+        scenario = info.scenario
+        self._max_speed = scenario.robot.max_speed
+        self._max_yaw_rate = scenario.robot.max_yaw_rate
+        grid = self._grid(scenario)
+        start = scenario.start
+        here = np.array([start.x, start.y])
+        goals: list[tuple[np.ndarray, float | None]] = []
+        for goal in info.route:
+            if goal == "dock" and scenario.dock is not None:
+                b = scenario.dock.pose
+                goals.append((np.array([b.x, b.y]), b.yaw))
+            else:
+                goals.append((np.array([start.x, start.y]), None))
+        if info.inspection and scenario.inspection_object:
+            min_arc = 90.0
+            if info.primary is not None:
+                min_arc = float(info.primary.min_arc_deg)
+            arc = math.radians(min_arc + self.settings.arc_margin_deg)
+            entry, orbit = self._orbit_plan(scenario, grid, arc, here, goals[0][0])
+            self._legs.append(_PathLeg(self._path(scenario, here, entry), None, True, orbit.centre))
+            self._legs.append(orbit)
+            c = np.asarray(orbit.centre)
+            end = orbit.direction * orbit.arc + math.atan2(*(entry - c)[::-1])
+            here = c + orbit.radius * np.array([math.cos(end), math.sin(end)])
+        for point, yaw in goals:
+            self._legs.append(_PathLeg(self._path(scenario, here, point), yaw, True))
+            here = point
+        self._swept, self._last_phi = 0.0, math.nan
+
+    # ------------------------------------------------------------ acting
+
+    def intention(self) -> tuple[str, str]:
+        """What it is doing now: ("route", "") while driving a path, ("inspection", object)."""
+        if not self._drive or self._leg >= len(self._legs):
+            return ("", "")
+        leg = self._legs[self._leg]
+        return ("inspection", "") if isinstance(leg, _OrbitLeg) else ("route", "")
+
+    def _answer(self, screen: ScreenState, t: float) -> bool | None:
+        text = screen.question
+        if text is None:
+            self._question = None
+            return None
+        if text != self._question:  # a new question (a blank gap separates equal ones)
+            self._question, self._answered = text, None
+            self._question_seen_t = t
+            self._question_right = bool(self._rng.random() < self.settings.accuracy)
+        if (
+            self._answered == text
+            or t - self._question_seen_t < self.settings.answer_delay_s - 1e-9
+        ):
+            return None
+        self._answered = text
+        right = answer_is_correct(text)
+        return right if self._question_right else not right
+
+    def act(self, obs: Observation, screen: ScreenState) -> ParticipantInput:
+        """Follow the plan and answer questions."""
+        answer = self._answer(screen, obs.t)
+        u = np.zeros(3)
+        if self._drive and not screen.paused:
+            while self._leg < len(self._legs):
+                leg = self._legs[self._leg]
+                step = (
+                    self._follow_orbit(obs.pose, leg)
+                    if isinstance(leg, _OrbitLeg)
+                    else self._follow_path(obs.pose, leg)
+                )
+                if step is not None:
+                    u = step
+                    break
+                self._leg += 1
+                self._progress = 0
+                self._swept, self._last_phi = 0.0, math.nan
+        return ParticipantInput(u=u, answer=answer)
+
+    def _to_robot(self, pose: Pose2D, vx: float, vy: float, w: float) -> np.ndarray:
+        c, s = math.cos(pose.yaw), math.sin(pose.yaw)
+        return np.array([c * vx + s * vy, -s * vx + c * vy, _clip(w, self._max_yaw_rate)])
+
+    def _follow_path(self, pose: Pose2D, leg: _PathLeg) -> np.ndarray | None:
+        s = self.settings
+        pts = leg.points
+        pos = np.array([pose.x, pose.y])
+        end = pts[-1]
+        to_end = float(np.linalg.norm(end - pos))
+        yaw_goal = leg.final_yaw
+        if leg.face is not None:
+            yaw_goal = math.atan2(leg.face[1] - pose.y, leg.face[0] - pose.x)
+        yaw_err = 0.0 if yaw_goal is None else _wrap(yaw_goal - pose.yaw)
+        if to_end <= s.stop_tolerance_m and abs(yaw_err) <= 0.05:
+            return None
+        # progress: the nearest path point from the current one on, within a window
+        window = pts[self._progress : self._progress + 40]
+        self._progress += int(np.argmin(np.linalg.norm(window - pos, axis=1)))
+        ahead = np.linalg.norm(pts[self._progress :] - pos, axis=1)
+        beyond = np.nonzero(ahead >= s.lookahead_m)[0]
+        target = pts[self._progress + int(beyond[0])] if len(beyond) else end
+        direction = target - pos
+        dist = float(np.linalg.norm(direction))
+        speed = min(s.speed, 0.9 * to_end + 0.03) if leg.stop else s.speed
+        if dist > 1e-9:
+            vel = direction / dist * min(speed, dist / 0.05)
+        else:
+            vel = np.zeros(2)
+        if yaw_goal is not None and to_end <= s.align_distance_m:
+            want = yaw_goal
+        elif dist > 0.05:
+            want = math.atan2(direction[1], direction[0])
+        else:
+            want = pose.yaw
+        err = _wrap(want - pose.yaw)
+        if abs(err) > math.radians(50):
+            vel = vel * 0.3  # turn mostly on the spot before driving on
+        return self._to_robot(pose, float(vel[0]), float(vel[1]), s.yaw_gain * err)
+
+    def _follow_orbit(self, pose: Pose2D, leg: _OrbitLeg) -> np.ndarray | None:
+        s = self.settings
+        cx, cy = leg.centre
+        dx, dy = pose.x - cx, pose.y - cy
+        dist = math.hypot(dx, dy)
+        phi = math.atan2(dy, dx)
+        if not math.isnan(self._last_phi):
+            self._swept += leg.direction * _wrap(phi - self._last_phi)
+        self._last_phi = phi
+        if self._swept >= leg.arc:
+            return None
+        face = math.atan2(-dy, -dx)
+        # facing the centre, the robot's +y (left) is the clockwise tangent
+        vy = -leg.direction * s.orbit_speed
+        vx = _clip(2.0 * (dist - leg.radius), 0.1)
+        w = s.yaw_gain * _wrap(face - pose.yaw) + leg.direction * s.orbit_speed / max(dist, 0.1)
+        return np.array([vx, vy, _clip(w, self._max_yaw_rate)])
