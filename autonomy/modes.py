@@ -85,3 +85,4 @@ def settings_from(cls: type[S], values: dict[str, Any], *, where: str) -> S:
 
 # Modes that register themselves on import; add a new mode's module here.
 from autonomy import manual, reactive_bn  # noqa: E402, F401, I001
+from autonomy import contextual  # noqa: E402, F401, I001

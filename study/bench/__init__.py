@@ -19,6 +19,7 @@ from collections.abc import Callable
 GROUPS: dict[str, str] = {
     "sim": "study.bench.sim",
     "autonomy": "study.bench.autonomy",
+    "report": "study.bench.report",
 }
 
 

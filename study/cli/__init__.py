@@ -43,6 +43,14 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "run": ("study.cli.run:run", "Run one participant's session of a protocol (headless)."),
     "db": ("study.cli.db:db", "Study database tools: check integrity and consistency."),
     "export": ("study.cli.export:export_command", "Write one CSV per database table."),
+    "report": (
+        "study.cli.report:report_command",
+        "The study report: HTML with figures and statistics, tables, results.json.",
+    ),
+    "train": (
+        "study.cli.train:train_command",
+        "Learn the contextual-task model from demonstrations (DP-GMM + SOGP).",
+    ),
 }
 
 

@@ -1,0 +1,221 @@
+"""The report's figures (matplotlib, Agg, no pyplot state): PNG and SVG.
+
+Thesis Figs. 7.50-7.52 (means and standard deviations per mode as bars, the secondary
+metrics with the baseline), Fig. 7.44b (clearance distribution per mode), and what issue 7
+adds: the NASA-TLX subscale profile per mode, every trial's path per mode, each metric by
+position in the participant's order (a learning or fatigue effect shows there).
+
+Decisions where the spec is silent
+----------------------------------
+- Figures are built on ``matplotlib.figure.Figure`` with an Agg canvas, never through
+  ``pyplot``, so nothing global changes and figures are freed with their objects.
+- Bars are the mean with error bars of one SD (as the thesis's figures), with each
+  participant's value as a dot over the bar, so the spread behind an SD is visible.
+- Paths: the analysis has no simulator access (layering), so the paths are drawn without
+  the map: x, y of the samples with equal aspect, start (circle) and end (cross) marked.
+  Long trials are thinned to at most 600 points each for the drawing only.
+- Clearance distribution: the share of ticks per 0.1 m bin from 0 to 2 m plus an overflow
+  bin (the primary task's histogram bins), from the samples' ``min_clearance_m``; a trial
+  without samples contributes its stored ``clearance_histogram`` when present.
+"""
+
+from __future__ import annotations
+
+import io
+from pathlib import Path
+
+import matplotlib
+import numpy as np
+import pandas as pd
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+from analysis.data import BASELINE
+from analysis.metrics import Metric
+from questionnaires import nasa_tlx
+
+COLOURS = ("#4C72B0", "#DD8452", "#55A868", "#C44E52", "#8172B3", "#937860", "#DA8BC3")
+BASELINE_COLOUR = "#8C8C8C"
+CLEARANCE_EDGES_M = np.round(np.arange(21) * 0.1, 10)  # 0..2 m; a 21st bin >= 2 m
+MAX_PATH_POINTS = 600
+
+
+def _colour(level: str, modes: tuple[str, ...]) -> str:
+    if level == BASELINE:
+        return BASELINE_COLOUR
+    return COLOURS[modes.index(level) % len(COLOURS)] if level in modes else COLOURS[-1]
+
+
+def _figure(width: float, height: float, **margins: float) -> Figure:
+    # fixed margins: a layout engine (tight, constrained) doubled the drawing time
+    fig = Figure(figsize=(width, height), dpi=100)
+    FigureCanvasAgg(fig)
+    fig.subplots_adjust(**{"left": 0.09, "right": 0.98, "bottom": 0.2, "top": 0.9, **margins})
+    return fig
+
+
+def save(fig: Figure, folder: Path, stem: str) -> tuple[Path, Path, str]:
+    """Write ``stem.png`` and ``stem.svg`` into ``folder``.
+
+    Returns
+    -------
+    (png_path, svg_path, svg_text) : the SVG text starts at ``<svg`` (no XML prolog), ready
+    to inline in HTML.
+    """
+    folder.mkdir(parents=True, exist_ok=True)
+    png = folder / f"{stem}.png"
+    svg = folder / f"{stem}.svg"
+    fig.savefig(png, format="png", dpi=100)
+    buffer = io.StringIO()
+    with matplotlib.rc_context({"svg.fonttype": "none"}):  # text as text: small, searchable
+        fig.savefig(buffer, format="svg", metadata={"Date": None})
+    text = buffer.getvalue()
+    svg.write_text(text, encoding="utf-8")
+    return png, svg, text[text.index("<svg") :]
+
+
+def metric_figure(long: pd.DataFrame, metric: Metric, modes: tuple[str, ...]) -> Figure:
+    """(a) mean and SD per level as bars with each participant's value; (b) the metric by
+    position in the order, one line per mode (means, with the per-trial values as dots).
+
+    Parameters
+    ----------
+    long : :func:`analysis.metrics.long_frame` of the metric.
+    metric : its table entry (label, name).
+    modes : the study's modes (for colours).
+    """
+    fig = _figure(8.0, 3.2, wspace=0.3)
+    ax, ax_pos = fig.subplots(1, 2, width_ratios=(1.1, 1.0))
+    levels = list(dict.fromkeys(long["mode"]))
+    x = np.arange(len(levels))
+    stats = long.groupby("mode", sort=False)["value"].agg(["mean", "std"]).reindex(levels)
+    ax.bar(
+        x,
+        stats["mean"].to_numpy(),
+        yerr=stats["std"].fillna(0.0).to_numpy(),
+        color=[_colour(lv, modes) for lv in levels],
+        alpha=0.8,
+        capsize=5,
+        edgecolor="black",
+        linewidth=0.6,
+    )
+    rng = np.random.default_rng(0)  # fixed jitter of the dots: a drawing, not the data
+    for i, lv in enumerate(levels):
+        v = long.loc[long["mode"] == lv, "value"].dropna().to_numpy()
+        ax.scatter(i + rng.uniform(-0.15, 0.15, len(v)), v, s=9, color="black", zorder=3)
+    ax.set_xticks(x, levels, rotation=15)
+    ax.set_ylabel(metric.label)
+    ax.set_title(f"{metric.name}: mean and SD")
+    ax.grid(axis="y", alpha=0.3)
+    drive = long[long["position"] >= 0]
+    for lv in [m for m in levels if m != BASELINE]:
+        d = drive[drive["mode"] == lv]
+        means = d.groupby("position")["value"].mean()
+        ax_pos.plot(means.index + 1, means.to_numpy(), "-o", color=_colour(lv, modes), label=lv)
+        ax_pos.scatter(d["position"] + 1, d["value"], s=7, color=_colour(lv, modes), alpha=0.4)
+    positions = sorted(drive["position"].unique())
+    ax_pos.set_xticks([p + 1 for p in positions])
+    ax_pos.set_xlabel("position in the participant's order")
+    ax_pos.set_ylabel(metric.label)
+    ax_pos.set_title("by position")
+    ax_pos.grid(alpha=0.3)
+    if len(levels):
+        ax_pos.legend(fontsize=7)
+    return fig
+
+
+def tlx_profile_figure(trials: pd.DataFrame, modes: tuple[str, ...]) -> Figure:
+    """Mean NASA-TLX rating per subscale, grouped bars per mode with SD error bars."""
+    fig = _figure(8.0, 3.4, left=0.08, bottom=0.18)
+    ax = fig.subplots()
+    ids = nasa_tlx.SUBSCALE_IDS
+    width = 0.8 / max(len(modes), 1)
+    x = np.arange(len(ids))
+    for i, mode in enumerate(modes):
+        d = trials[trials["mode"] == mode]
+        mean = [d[f"tlx_{s}"].mean() for s in ids]
+        sd = [d[f"tlx_{s}"].std() for s in ids]
+        ax.bar(
+            x + (i - (len(modes) - 1) / 2) * width,
+            mean,
+            width,
+            yerr=np.nan_to_num(sd),
+            color=_colour(mode, modes),
+            label=mode,
+            capsize=3,
+            edgecolor="black",
+            linewidth=0.5,
+        )
+    ax.set_xticks(x, [s.title for s in nasa_tlx.SUBSCALES], rotation=15)
+    ax.set_ylabel("rating (0-100), mean and SD")
+    ax.set_ylim(0, 110)
+    ax.set_title("NASA-TLX subscale profile per mode")
+    ax.legend(fontsize=8)
+    ax.grid(axis="y", alpha=0.3)
+    return fig
+
+
+def clearance_counts(
+    samples: pd.DataFrame, trials: pd.DataFrame, outcomes: dict[int, dict]
+) -> pd.DataFrame:
+    """Tick counts per clearance bin and mode.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Index: the 21 bin lower edges [m] (the last bin is >= 2 m); one column per mode.
+    """
+    bins = np.append(CLEARANCE_EDGES_M, np.inf)
+    by_mode: dict[str, np.ndarray] = {}
+    with_samples = set(samples["trial_id"].astype(int)) if len(samples) else set()
+    for mode, tid in zip(trials["mode"], trials["trial_id"].astype(int), strict=True):
+        counts = by_mode.setdefault(mode, np.zeros(len(CLEARANCE_EDGES_M)))
+        if tid in with_samples:
+            c = samples.loc[samples["trial_id"] == tid, "min_clearance_m"].to_numpy(float)
+            counts += np.histogram(np.clip(c, 0.0, None), bins=bins)[0]
+        else:
+            hist = (outcomes.get(tid) or {}).get("clearance_histogram")
+            if hist is not None and len(hist) == len(CLEARANCE_EDGES_M):
+                counts += np.asarray(hist, dtype=float)
+    return pd.DataFrame(by_mode, index=pd.Index(CLEARANCE_EDGES_M, name="bin_low_m"))
+
+
+def clearance_figure(counts: pd.DataFrame, modes: tuple[str, ...]) -> Figure:
+    """Share of ticks per 0.1 m clearance bin, one step line per mode (Fig. 7.44b)."""
+    fig = _figure(8.0, 3.2, bottom=0.16)
+    ax = fig.subplots()
+    for mode in counts.columns:
+        c = counts[mode].to_numpy(float)
+        share = c / c.sum() if c.sum() > 0 else c
+        edges = np.append(counts.index.to_numpy(float), 2.1)
+        ax.stairs(share, edges, color=_colour(mode, modes), label=mode, linewidth=1.6)
+    ax.set_xlabel("clearance to the nearest obstacle [m] (last bin: >= 2 m)")
+    ax.set_ylabel("share of ticks")
+    ax.set_title("Clearance distribution per mode")
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    return fig
+
+
+def paths_figure(samples: pd.DataFrame, trials: pd.DataFrame, modes: tuple[str, ...]) -> Figure:
+    """Every counted trial's path (x, y) in one panel per mode; start o, end x."""
+    fig = _figure(4.0 * max(len(modes), 1), 4.0, left=0.06, bottom=0.12, wspace=0.15)
+    axes = np.atleast_1d(fig.subplots(1, max(len(modes), 1), sharex=True, sharey=True))
+    grouped = {int(k): g for k, g in samples.groupby("trial_id")} if len(samples) else {}
+    for ax, mode in zip(axes, modes, strict=False):
+        for tid in trials.loc[trials["mode"] == mode, "trial_id"].astype(int):
+            g = grouped.get(tid)
+            if g is None or g.empty:
+                continue
+            g = g.sort_values("tick")
+            step = max(1, int(np.ceil(len(g) / MAX_PATH_POINTS)))
+            x, y = g["x"].to_numpy()[::step], g["y"].to_numpy()[::step]
+            ax.plot(x, y, color=_colour(mode, modes), alpha=0.45, linewidth=0.9)
+            ax.plot(g["x"].iloc[0], g["y"].iloc[0], "o", color="black", markersize=3)
+            ax.plot(g["x"].iloc[-1], g["y"].iloc[-1], "x", color="black", markersize=4)
+        ax.set_title(mode)
+        ax.set_aspect("equal", adjustable="box")
+        ax.set_xlabel("x [m]")
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel("y [m]")
+    return fig

@@ -1,0 +1,459 @@
+"""Unsupervised training of the contextual-task model (thesis Sec. 6.2.1-6.2.2, 7.4.1;
+spec section 3; issue 3, "Demonstrations and training").
+
+:func:`train` takes the task features ``q`` (n, 6) of unlabelled demonstrations (each
+computed against the demonstrated target, ``autonomy.features.task_features``) and
+
+1. encodes the angle as (cos, sin) and standardises every column
+   (:class:`~autonomy.features.FeatureScaler`);
+2. clusters the standardised features with a Dirichlet-process Gaussian mixture
+   (scikit-learn's ``BayesianGaussianMixture``, ``weight_concentration_prior_type=
+   "dirichlet_process"``, full covariances, at most ``max_components`` components),
+   restarted ``restarts`` times with different seeds keeping the highest evidence lower
+   bound (scikit-learn's ``n_init``; the thesis "restarted inference many times and kept the
+   highest evidence", Sec. 7.4.1); each point's cluster is its most probable component;
+3. drops tiny clusters (below); the survivors are the motion primitives;
+4. trains the one-vs-all SOGP classifier over the primitives (capacity 500,
+   hyperparameters from the full GP's evidence on a class-balanced subsample, Ch. 5);
+5. keeps per primitive the GMR points ``(s*, u*)`` of the fast online GMR (Alg. 2) and the
+   mean and covariance used by the Mahalanobis stop of the rollout (Eq. 6.3).
+
+The true task types, when given, are used only for the cluster summary (reporting);
+nothing in the model depends on them.
+
+Decisions where the spec is silent:
+
+- The DP-GMM is fitted on a random subsample of at most ``dpgmm_points`` points (the
+  variational inference is O(n K d^2) per iteration and 20 Hz demonstrations are highly
+  correlated); every point is then labelled by the fitted mixture.
+- Tiny clusters: a component labelling fewer than ``max(min_cluster_points,
+  min_cluster_share * n)`` points is dropped, and its points go to their most probable
+  *kept* component (the argmax of the mixture's responsibilities over the kept columns).
+  Such components are too small for a one-vs-all GP with balanced evidence and for a
+  stable Mahalanobis stop. The largest component is always kept.
+- Primitives are numbered 0, 1, ... by decreasing size (ties by component index) and
+  named ``primitive_<id>``; names carry no task label.
+- The Mahalanobis statistics of a primitive are the empirical mean and covariance
+  (ddof 0) of the standardised features assigned to it after the merge: the thesis
+  computes them "beforehand" from the cluster's data (Sec. 6.2.3), and after merging they
+  describe the primitive better than the mixture component they started from.
+  ``covariance_reg`` (0.01, i.e. a floor of 0.1 standard deviations) is added to the
+  diagonal: ``theta`` is a function of ``s`` and ``u``, so the features lie on a curved
+  5-dimensional surface in the 7 encoded dimensions and a cluster's covariance has
+  near-zero directions (eigenvalues down to 1e-4 measured) in which any rolled-out
+  ``q_est`` would count as an outlier at once.
+- Randomness: one ``numpy.random.Generator`` from ``seed`` draws the DP-GMM subsample,
+  the DP-GMM seed, and everything in the classifier; the same data and seed give the same
+  model (checked by the tests to 1e-9).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+from dataclasses import asdict, dataclass
+from datetime import UTC, datetime
+from typing import Any
+
+import numpy as np
+from sklearn.mixture import BayesianGaussianMixture
+
+from autonomy.features import FeatureScaler, encode
+from autonomy.model import FORMAT_VERSION, ContextualModel, platform_version
+from autonomy.sogp import SparseOnlineGP
+from autonomy.sogp_classifier import SOGPClassifier
+
+
+@dataclass(frozen=True, slots=True)
+class TrainSettings:
+    """Settings of :func:`train` (values: see the module docstring)."""
+
+    max_components: int = 20  # upper bound of the DP-GMM's truncation
+    restarts: int = 5  # DP-GMM inference runs; the highest lower bound is kept
+    max_iter: int = 500  # variational EM iterations per run
+    dpgmm_points: int = 6000  # subsample the DP-GMM is fitted on
+    stride: int = 4  # way points: every 4th tick of a run (20 Hz -> 5 Hz, thesis Sec. 7.3)
+    min_cluster_share: float = 0.04  # of all points; smaller clusters are merged
+    min_cluster_points: int = 30
+    capacity: int = 500  # SOGP basis vectors per cluster (thesis Sec. 7.3)
+    hyper_points: int = 300  # class-balanced subsample for the GP evidence
+    hyper_restarts: int = 2  # L-BFGS-B runs per cluster
+    gmr_k: int = 10  # neighbours of the fast online GMR (thesis Sec. 7.4.4)
+    covariance_reg: float = 1e-2  # added to the primitives' covariance diagonal (std. units)
+
+    def __post_init__(self) -> None:
+        for name in (
+            "max_components",
+            "restarts",
+            "max_iter",
+            "dpgmm_points",
+            "stride",
+            "min_cluster_points",
+            "capacity",
+            "hyper_points",
+            "hyper_restarts",
+            "gmr_k",
+        ):
+            value = getattr(self, name)
+            if not (isinstance(value, int) and value >= 1):
+                raise ValueError(f"training setting {name}: must be an integer >= 1, got {value!r}")
+        if not (0.0 <= self.min_cluster_share < 1.0):
+            raise ValueError(
+                f"training setting min_cluster_share: must be in [0, 1), got "
+                f"{self.min_cluster_share!r}"
+            )
+
+
+def data_sha256(q: np.ndarray) -> str:
+    """SHA-256 of the training features (n, 6) as little-endian float64 bytes."""
+    return hashlib.sha256(np.ascontiguousarray(q, dtype="<f8").tobytes()).hexdigest()
+
+
+def cluster_dpgmm(
+    Z: np.ndarray,
+    *,
+    settings: TrainSettings,
+    rng: np.random.Generator,
+    fit_rows: np.ndarray | None = None,
+) -> tuple[np.ndarray, dict[str, Any]]:
+    """DP-GMM clustering of standardised features with tiny clusters merged.
+
+    Parameters
+    ----------
+    Z : numpy.ndarray
+        (n, d) standardised encoded features; every row is labelled.
+    settings : TrainSettings
+    rng : numpy.random.Generator
+        Draws the fitting subsample and the mixture's seed.
+    fit_rows : numpy.ndarray, optional
+        Rows the mixture may be fitted on (default all); at most ``dpgmm_points`` of them
+        are drawn.
+
+    Returns
+    -------
+    labels : numpy.ndarray
+        (n,) primitive ids 0..c-1, by decreasing size.
+    info : dict
+        ``components`` (used by the mixture), ``lower_bound``, ``converged``, ``dropped``
+        (number of merged components), ``merged_points`` and ``fit_points``.
+    """
+    n = Z.shape[0]
+    rows = np.arange(n) if fit_rows is None else np.asarray(fit_rows)
+    fit_idx = np.sort(rng.choice(rows, size=min(len(rows), settings.dpgmm_points), replace=False))
+    seed = int(rng.integers(2**31 - 1))
+    bgm = BayesianGaussianMixture(
+        n_components=min(settings.max_components, len(fit_idx)),
+        covariance_type="full",
+        weight_concentration_prior_type="dirichlet_process",
+        n_init=settings.restarts,  # keeps the run with the highest lower bound
+        max_iter=settings.max_iter,
+        init_params="kmeans",
+        random_state=seed,
+    )
+    bgm.fit(Z[fit_idx])
+    resp = bgm.predict_proba(Z)  # (n, K)
+    raw = np.argmax(resp, axis=1)
+    counts = np.bincount(raw, minlength=resp.shape[1])
+    threshold = max(settings.min_cluster_points, settings.min_cluster_share * n)
+    keep = np.flatnonzero(counts >= threshold)
+    if keep.size == 0:
+        keep = np.array([int(np.argmax(counts))])
+    assigned = keep[np.argmax(resp[:, keep], axis=1)]  # merge: most probable kept component
+    sizes = np.bincount(assigned, minlength=resp.shape[1])[keep]
+    order = keep[np.lexsort((keep, -sizes))]  # decreasing size, ties by index
+    relabel = np.full(resp.shape[1], -1, dtype=np.int64)
+    relabel[order] = np.arange(order.size)
+    labels = relabel[assigned]
+    info = {
+        "components": int(np.count_nonzero(counts)),
+        "lower_bound": float(bgm.lower_bound_),
+        "converged": bool(bgm.converged_),
+        "dropped": int(np.count_nonzero(counts) - keep.size),
+        "merged_points": int(np.count_nonzero(~np.isin(raw, keep))),
+        "fit_points": int(len(fit_idx)),
+    }
+    return labels, info
+
+
+def way_points(n: int, run: np.ndarray | None, stride: int) -> np.ndarray:
+    """Rows kept as way points: every ``stride``-th tick of each run (from its first)."""
+    if run is None:
+        return np.arange(0, n, stride)
+    run = np.asarray(run)
+    starts = np.concatenate(([True], run[1:] != run[:-1]))
+    first = np.maximum.accumulate(np.where(starts, np.arange(n), 0))
+    return np.flatnonzero((np.arange(n) - first) % stride == 0)
+
+
+def fit_classifier(
+    Z: np.ndarray, labels: np.ndarray, *, settings: TrainSettings, rng: np.random.Generator
+) -> tuple[SOGPClassifier, list[float]]:
+    """The SOGP classifier over the primitives, with a numerical guard.
+
+    A one-vs-all GP whose online updates end non-finite (seen with near-duplicate
+    inputs under long length scales and the noise at its floor) is refitted with the
+    same hyperparameters and the novelty tolerance raised tenfold, up to 1e-2.
+
+    Returns
+    -------
+    classifier : SOGPClassifier
+    novelty_tol : list of float
+        (c,) the tolerance each cluster's GP ended with.
+    """
+    clf = SOGPClassifier(
+        capacity=settings.capacity,
+        hyper_points=settings.hyper_points,
+        restarts=settings.hyper_restarts,
+    )
+    with np.errstate(over="ignore", invalid="ignore"):
+        clf.fit(Z, labels, rng=rng)
+    tols = []
+    for j, c in enumerate(clf.classes_):
+        gp = clf.models_[j]
+        tol = gp.novelty_tol
+        t = np.where(labels == c, 1.0, -1.0)
+        while not (np.all(np.isfinite(gp.alpha_)) and np.all(np.isfinite(gp.C_))):
+            tol *= 10.0
+            if tol > 1e-2:
+                raise ValueError(
+                    f"training: the SOGP of primitive {int(c)} is numerically "
+                    f"unstable on these data"
+                )
+            gp = SparseOnlineGP(
+                capacity=settings.capacity,
+                length_scales=gp.length_scales,
+                signal_var=gp.signal_var,
+                noise_var=gp.noise_var,
+                novelty_tol=tol,
+            )
+            order = rng.permutation(len(Z))
+            with np.errstate(over="ignore", invalid="ignore"):
+                gp.fit(Z[order], t[order])
+        clf.models_[j] = gp
+        tols.append(float(tol))
+    return clf, tols
+
+
+def cluster_summary(labels: np.ndarray, task: np.ndarray | None) -> list[dict[str, Any]]:
+    """Per primitive: size and, if true task types are given, the share of each (reporting
+    only)."""
+    out = []
+    for c in np.unique(labels):
+        mask = labels == c
+        entry: dict[str, Any] = {
+            "id": int(c),
+            "name": f"primitive_{int(c)}",
+            "size": int(mask.sum()),
+        }
+        if task is not None:
+            types, counts = np.unique(np.asarray(task)[mask], return_counts=True)
+            entry["task_share"] = {
+                str(t): round(float(k) / float(mask.sum()), 4)
+                for t, k in sorted(zip(types, counts, strict=True), key=lambda x: -x[1])
+            }
+        out.append(entry)
+    return out
+
+
+def train(
+    q: np.ndarray,
+    *,
+    seed: int = 0,
+    settings: TrainSettings | None = None,
+    task: np.ndarray | None = None,
+    source: str = "",
+    run: np.ndarray | None = None,
+) -> ContextualModel:
+    """Train a contextual-task model on unlabelled task features.
+
+    Parameters
+    ----------
+    q : numpy.ndarray
+        (n, 6) task features ``(s_x [m], s_y [m], theta [rad], v_x, v_y, omega)`` with the
+        command in normalised (-1, 1) units, each against its demonstrated target.
+    seed : int
+        Seeds every random choice (see the module docstring).
+    settings : TrainSettings, optional
+    task : numpy.ndarray, optional
+        (n,) true task types, for the cluster summary only.
+    source : str
+        Where the data came from (stored in the metadata).
+    run : numpy.ndarray, optional
+        (n,) run index of every row (rows of a run contiguous), for the way-point stride.
+
+    Returns
+    -------
+    ContextualModel
+        With metadata: versions, creation date, data hash, settings, cluster summary.
+    """
+    settings = TrainSettings() if settings is None else settings
+    q = np.asarray(q, dtype=float)
+    if q.ndim != 2 or q.shape[1] != 6:
+        raise ValueError(f"training features q: expected shape (n, 6), got {q.shape}")
+    if q.shape[0] < 20:
+        raise ValueError(f"training features q: need at least 20 points, got {q.shape[0]}")
+    if not np.all(np.isfinite(q)):
+        raise ValueError("training features q: must be finite (no NaN or inf)")
+    if task is not None and np.shape(task) != (q.shape[0],):
+        raise ValueError(f"task labels: expected shape ({q.shape[0]},), got {np.shape(task)}")
+    rng = np.random.default_rng(seed)
+    X = encode(q)
+    scaler = FeatureScaler().fit(X)
+    Z = scaler.transform(X)
+    wp = way_points(len(Z), run, settings.stride)
+    labels, info = cluster_dpgmm(Z, settings=settings, rng=rng, fit_rows=wp)
+    c = int(labels.max()) + 1
+    means = np.empty((c, Z.shape[1]))
+    covs = np.empty((c, Z.shape[1], Z.shape[1]))
+    chunks = []
+    for j in range(c):
+        zj = Z[labels == j]
+        means[j] = zj.mean(axis=0)
+        d = zj - means[j]
+        covs[j] = d.T @ d / len(zj) + settings.covariance_reg * np.eye(Z.shape[1])  # Eq. (6.3)
+        chunks.append(q[labels == j][:, [0, 1, 3, 4, 5]])  # s* -> u* (Alg. 2)
+    offsets = np.concatenate(([0], np.cumsum([len(ch) for ch in chunks]))).astype(np.int64)
+    classifier, tols = fit_classifier(Z[wp], labels[wp], settings=settings, rng=rng)
+    info["novelty_tol"] = tols
+    info["way_points"] = int(len(wp))
+    metadata = {
+        "format_version": FORMAT_VERSION,
+        "platform_version": platform_version(),
+        "created": datetime.now(UTC).isoformat(timespec="seconds"),
+        "data_sha256": data_sha256(q),
+        "n_points": int(q.shape[0]),
+        "source": source,
+        "seed": int(seed),
+        "settings": asdict(settings),
+        "dpgmm": info,
+        "clusters": cluster_summary(labels, task),
+    }
+    return ContextualModel.with_classifier(
+        classifier,
+        scaler=scaler,
+        cluster_ids=np.arange(c, dtype=np.int64),
+        cluster_means=means,
+        cluster_covariances=covs,
+        gmr_points=np.concatenate(chunks),
+        gmr_offsets=offsets,
+        metadata=metadata,
+    )
+
+
+SYNTHETIC_TASKS = ("doorway_crossing", "object_inspection", "wall_following")
+
+
+def synthetic_demonstrations(
+    rng: np.random.Generator,
+    *,
+    runs: int = 6,
+    steps: int = 60,
+    dt: float = 0.05,
+    noise: float = 0.05,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Idealised demonstrations of three task patterns, for tests and benchmarks.
+
+    A point robot (limits 1 m/s, 1.2 rad/s) driven by a noisy scripted stick, with the
+    target point ``s`` in the robot frame:
+
+    - ``doorway_crossing``: a target 1.5-3.5 m away within +-60 degrees of the heading;
+      drive straight at it at 0.4-0.6 of full speed while turning to face it;
+    - ``object_inspection``: a target about 1 m ahead; slide sideways (either direction)
+      around it while turning to keep facing it;
+    - ``wall_following``: a wall point 0.6-1 m to one side; drive forward along it.
+
+    Runs alternate between the two sides (or directions) of each pattern.
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+    runs : int
+        Runs per pattern.
+    steps : int
+        Ticks per run.
+    dt : float
+        [s] tick.
+    noise : float
+        Std. dev. of the stick noise (normalised units).
+
+    Returns
+    -------
+    q : numpy.ndarray
+        (n, 6) task features, command normalised.
+    task : numpy.ndarray
+        (n,) pattern names (evaluation only).
+    run : numpy.ndarray
+        (n,) run index.
+    """
+    from autonomy.features import task_features  # local: keeps the module's imports light
+
+    qs, tasks, run_ids = [], [], []
+    r_id = 0
+    for name in SYNTHETIC_TASKS:
+        for k in range(runs):
+            side = 1.0 if k % 2 == 0 else -1.0  # both sides and directions, alternately
+            if name == "doorway_crossing":
+                dist, bearing = rng.uniform(1.5, 3.5), side * rng.uniform(0.0, 1.0)
+                target = dist * np.array([math.cos(bearing), math.sin(bearing)])
+            elif name == "object_inspection":
+                target = np.array([rng.uniform(0.8, 1.2), rng.uniform(-0.2, 0.2)])
+            else:
+                target = np.array([rng.uniform(-0.5, 0.5), side * rng.uniform(0.6, 1.0)])
+            pose = np.zeros(3)
+            speed = rng.uniform(0.4, 0.6)
+            for _ in range(steps):
+                c, s = math.cos(pose[2]), math.sin(pose[2])
+                d = target - pose[:2]
+                sr = np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1]])  # robot frame
+                if name == "wall_following":
+                    # the wall point stays abeam: the nearest point of a wall along x
+                    target = np.array([pose[0], target[1]])
+                    d = target - pose[:2]
+                    sr = np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1]])
+                bearing = math.atan2(sr[1], sr[0])
+                if name == "doorway_crossing":
+                    u = np.array(
+                        [
+                            speed * math.cos(bearing),
+                            speed * math.sin(bearing),
+                            np.clip(1.5 * bearing, -1, 1),
+                        ]
+                    )
+                elif name == "object_inspection":
+                    r = float(np.hypot(*sr))
+                    u = np.array(
+                        [
+                            0.5 * (r - 1.0),
+                            side * speed,
+                            np.clip(2.0 * bearing - side * speed / max(r, 0.3), -1, 1),
+                        ]
+                    )
+                else:
+                    u = np.array(
+                        [speed, 0.5 * (abs(sr[1]) - 0.8) * np.sign(sr[1]), -0.5 * math.sin(pose[2])]
+                    )
+                u = np.clip(u + noise * rng.standard_normal(3), -1.0, 1.0)
+                qs.append(task_features(sr, u)[0])
+                tasks.append(name)
+                run_ids.append(r_id)
+                vx, vy, w = u[0], u[1], 1.2 * u[2]
+                pose = pose + dt * np.array([c * vx - s * vy, s * vx + c * vy, w])
+                if name == "doorway_crossing" and np.hypot(*sr) < 0.3:
+                    break
+            r_id += 1
+    return np.array(qs), np.array(tasks), np.array(run_ids)
+
+
+def format_summary(model: ContextualModel) -> str:
+    """A human-readable cluster summary (one line per primitive)."""
+    meta = model.metadata
+    info = meta.get("dpgmm", {})
+    lines = [
+        f"{meta.get('n_points', '?')} points; DP-GMM used {info.get('components', '?')} "
+        f"components, {info.get('dropped', 0)} tiny ones merged "
+        f"({info.get('merged_points', 0)} points); {model.n_clusters} primitives",
+    ]
+    for entry in meta.get("clusters", []):
+        shares = ", ".join(f"{t} {100 * s:.0f}%" for t, s in entry.get("task_share", {}).items())
+        lines.append(f"  {entry['name']:>12}: {entry['size']:6d} points  {shares}")
+    return "\n".join(lines)

@@ -1,0 +1,231 @@
+"""The contextual-task aware mode (autonomy.contextual), its rollout (Alg. 3), local GMR,
+recogniser and the tracking controller (autonomy.tracking)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from autonomy.contextual import (
+    ContextualSettings,
+    ContextualTaskMode,
+    LocalGMR,
+    Recogniser,
+    build_runtime,
+    local_gmm,
+    rollout,
+)
+from autonomy.gmr import gmr
+from autonomy.modes import settings_from
+from autonomy.safety import footprint_clearance, safe_command
+from autonomy.sogp_classifier import recognise
+from autonomy.tracking import track
+from autonomy.training import TrainSettings, synthetic_demonstrations, train
+from autonomy.types import RobotModel
+from sim.types import SemanticComponent
+from study.bench.autonomy import cluttered_segments, synthetic_observation
+
+ROBOT = RobotModel.rectangle(0.6, 0.5)
+FAST = TrainSettings(
+    max_components=8, restarts=2, capacity=80, hyper_points=150, hyper_restarts=1, stride=2
+)
+
+
+@pytest.fixture(scope="module")
+def model():
+    q, task, run = synthetic_demonstrations(np.random.default_rng(3), runs=5, steps=50)
+    return train(q, seed=1, settings=FAST, run=run, task=task)
+
+
+@pytest.fixture(scope="module")
+def mode(model):
+    m = ContextualTaskMode(ContextualSettings(model_path=""), model=model)
+    m.reset(ROBOT)
+    return m
+
+
+def doorway(cid: str, centre) -> SemanticComponent:
+    c = np.asarray(centre, dtype=float)
+    ends = np.array([c + (0, -0.45), c + (0, 0.45)])
+    return SemanticComponent(
+        id=cid,
+        kind="doorway",
+        centre=c,
+        points=ends,
+        ends=ends,
+        width=0.9,
+        normal=np.array([1.0, 0.0]),
+    )
+
+
+def wall(cid: str, y: float) -> SemanticComponent:
+    pts = np.column_stack((np.linspace(-3, 3, 61), np.full(61, y)))
+    return SemanticComponent(id=cid, kind="wall", centre=np.array([0.0, y]), points=pts)
+
+
+def empty_observation(components):
+    """No obstacle within reach: the safety layer passes every command."""
+    far = np.array([[[-50.0, -50.0], [50.0, -50.0]]])
+    return synthetic_observation(far, components=tuple(components))
+
+
+def test_recognises_the_doorway_the_input_heads_to(mode):
+    ahead = doorway("door_ahead", (1.3, 0.3))
+    others = [doorway("door_right", (2.0, -1.5)), doorway("door_left", (1.2, 2.6))]
+    obs = empty_observation([*others, ahead, wall("wall", -3.0)])
+    # the synthetic demonstrators' doorway pattern: drive at it, turning towards it
+    bearing = math.atan2(ahead.centre[1], ahead.centre[0])
+    u = np.array([0.5 * math.cos(bearing), 0.5 * math.sin(bearing), 1.5 * bearing])
+    assist = mode.step(obs, u * np.array([1.0, 1.0, ROBOT.max_yaw_rate]))
+    assert assist.target == ahead.id
+    assert assist.scores[ahead.id] == max(assist.scores.values())
+    assert assist.label.startswith("primitive_") and assist.beta > 0.5
+    assert len(assist.predicted_path) > 0
+    # the predicted path heads towards the doorway, and so does g
+    end = assist.predicted_path[-1, :2]
+    assert np.linalg.norm(end - ahead.centre) < np.linalg.norm(ahead.centre)
+    assert assist.g[:2] @ ahead.centre > 0
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    u=st.tuples(*(st.floats(-1.0, 1.0),) * 3),
+    centre=st.tuples(st.floats(-4, 4), st.floats(-4, 4)),
+)
+def test_beta_in_unit_interval_and_v_between_u_and_g(mode, u, centre):
+    u = np.array(u) * np.array([ROBOT.max_speed, ROBOT.max_speed, ROBOT.max_yaw_rate])
+    obs = empty_observation([doorway("d", centre), wall("w", 3.0)])
+    assist = mode.step(obs, u)
+    assert 0.0 <= assist.beta <= 1.0
+    lo, hi = np.minimum(u, assist.g), np.maximum(u, assist.g)
+    assert np.all(assist.v >= lo - 1e-12) and np.all(assist.v <= hi + 1e-12)
+    expected = (1 - assist.beta) * u + assist.beta * assist.g
+    np.testing.assert_allclose(assist.v, expected, atol=1e-9)
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    stop=st.floats(0.5, 50.0),
+    steps=st.integers(1, 80),
+    kind=st.sampled_from(["doorway", "object", "wall"]),
+)
+def test_rollout_always_terminates_and_stops_at_the_mahalanobis_bound(
+    model, seed, stop, steps, kind
+):
+    rng = np.random.default_rng(seed)
+    s = ContextualSettings(model_path="", mahalanobis_stop=stop, rollout_steps=steps)
+    rt = build_runtime(model, s)
+    centre = rng.uniform(-4, 4, 2)
+    pts = centre + rng.normal(scale=0.4, size=(int(rng.integers(1, 30)), 2))
+    comp = SemanticComponent(id="c", kind=kind, centre=centre, points=pts)
+    cluster = int(rng.choice(model.cluster_ids))
+    path, dist = rollout(rt, cluster, comp, ROBOT, s)
+    assert path.shape[1] == 3 and len(path) <= steps and np.all(np.isfinite(path))
+    assert np.all(dist[: len(path)] <= stop)  # every appended pose passed the test
+    if len(path) < steps:
+        assert len(dist) == len(path) + 1 and dist[-1] > stop  # stopped by Eq. (6.3)
+
+
+def test_mahalanobis_threshold_controls_the_length(model):
+    comp = doorway("d", (2.5, 0.3))
+    cluster = int(model.cluster_ids[0])
+    lengths = []
+    for stop in (1e-9, 1e9):
+        s = ContextualSettings(model_path="", mahalanobis_stop=stop, rollout_steps=40)
+        path, _ = rollout(build_runtime(model, s), cluster, comp, ROBOT, s)
+        lengths.append(len(path))
+    assert lengths == [0, 40]
+
+
+def test_recogniser_equals_the_classifier_recognise(model, rng):
+    fast = Recogniser(model.sogp)
+    for _ in range(5):
+        Z = rng.normal(size=(int(rng.integers(1, 12)), 7))
+        i, cluster, beta, mean = fast(Z)
+        i2, cluster2, beta2, mean2 = recognise(model.classifier, Z)
+        assert (i, cluster) == (i2, cluster2)
+        assert beta == pytest.approx(beta2, abs=1e-9)
+        np.testing.assert_allclose(mean, mean2, atol=1e-9)
+
+
+def test_local_gmr_regression_equals_gmr_of_its_local_mixture(rng):
+    data = np.column_stack((rng.uniform(-2, 2, (300, 2)), rng.normal(size=(300, 3))))
+    local = LocalGMR(data, k=10, iters=5)
+    for _ in range(10):
+        x = rng.uniform(-2, 2, 2)
+        log_w, mu_x, var_x, mu_y = local.fit_local(x)
+        _, idx = local.tree_.query(x, k=10)
+        w, mu, var = local_gmm(data[np.sort(idx)], iters=5)
+        expected, _ = gmr(w, mu, var, x[None, :], [0, 1], [2, 3, 4])
+        np.testing.assert_allclose(local.predict(x), expected[0], atol=1e-10)
+        np.testing.assert_allclose(np.exp(log_w).sum(), 1.0)
+
+
+def test_local_gmm_separates_two_blobs_and_handles_duplicates(rng):
+    blobs = np.vstack((rng.normal(0.0, 0.01, (5, 5)), rng.normal(3.0, 0.01, (5, 5))))
+    w, mu, _ = local_gmm(blobs, iters=10)
+    np.testing.assert_allclose(np.sort(mu[:, 0]), [0.0, 3.0], atol=0.05)
+    np.testing.assert_allclose(w, [0.5, 0.5], atol=1e-6)
+    w, mu, var = local_gmm(np.ones((10, 5)), iters=5)
+    assert w.shape == (1,) and np.all(var > 0)
+
+
+def test_the_mode_output_passes_the_safety_check(mode, rng):
+    comps = [doorway("d", (1.8, 0.2)), wall("w", -1.2)]
+    for _ in range(5):
+        segments = cluttered_segments(rng, ROBOT, n_boxes=10)
+        obs = synthetic_observation(segments, rng=rng, components=tuple(comps))
+        u = np.array([rng.uniform(-0.5, 1.0), rng.uniform(-0.6, 0.6), rng.uniform(-1, 1)])
+        assist = mode.step(obs, u)
+        _, scale = safe_command(assist.v, obs.points, ROBOT)
+        assert scale > 1.0 - 1e-6  # already collision-free over the horizon
+        assert set(assist.timings_ms) >= {"recognition", "rollout", "safety", "total"}
+        assert assist.predicted_path.ndim == 2 and assist.predicted_path.shape[1] == 3
+        assert footprint_clearance(np.zeros((1, 3)), obs.points, ROBOT)[0] > 0
+
+
+def test_without_model_or_candidates_it_behaves_as_manual(mode):
+    u = np.array([0.4, -0.1, 0.2])
+    manual = ContextualTaskMode(ContextualSettings(model_path=""))
+    manual.reset(ROBOT)
+    for m, comps in ((manual, [doorway("d", (2, 0))]), (mode, [])):
+        assist = m.step(empty_observation(comps), u)
+        assert assist.beta == 0.0 and assist.label == "" and assist.target == ""
+        np.testing.assert_array_equal(assist.g, u)
+        np.testing.assert_array_equal(assist.v, u)
+        assert len(assist.predicted_path) == 0
+
+
+def test_a_missing_model_file_is_named(tmp_path):
+    with pytest.raises(ValueError, match="missing.npz"):
+        ContextualTaskMode(ContextualSettings(model_path=str(tmp_path / "missing.npz")))
+
+
+def test_settings_are_validated():
+    with pytest.raises(ValueError, match="candidates"):
+        ContextualSettings(candidates=0)
+    with pytest.raises(ValueError, match="unknown setting"):
+        settings_from(ContextualSettings, {"nonsense": 1}, where="mode 'contextual_task'")
+    s = settings_from(ContextualSettings, {"tracking": {"lookahead_m": 0.6}}, where="m")
+    assert s.tracking.lookahead_m == 0.6
+
+
+def test_tracking_follows_straight_turning_and_rotating_paths():
+    dt = 0.05
+    t = dt * np.arange(1, 21)
+    straight = np.column_stack((0.4 * t, np.zeros_like(t), np.zeros_like(t)))
+    g = track(straight, dt, max_speed=1.0, max_yaw_rate=1.2)
+    np.testing.assert_allclose(g, [0.4, 0.0, 0.0], atol=1e-9)
+    sideways = np.column_stack((np.zeros_like(t), -0.3 * t, 0.5 * t))
+    g = track(sideways, dt, max_speed=1.0, max_yaw_rate=1.2)
+    assert g[1] < 0 and abs(g[0]) < 1e-9 and g[2] == pytest.approx(0.5)
+    spin = np.column_stack((np.zeros_like(t), np.zeros_like(t), -2.0 * t))
+    np.testing.assert_allclose(track(spin, dt, max_speed=1.0, max_yaw_rate=1.2), [0, 0, -1.2])
+    fast = np.column_stack((3.0 * t, np.zeros_like(t), np.zeros_like(t)))
+    assert math.hypot(*track(fast, dt, max_speed=1.0, max_yaw_rate=1.2)[:2]) == pytest.approx(1)
+    np.testing.assert_array_equal(track(np.zeros((0, 3)), dt, max_speed=1, max_yaw_rate=1), 0)

@@ -1,0 +1,201 @@
+"""analysis.report and `asa report` on a generated study database: the written files, every
+figure inlined in report.html, an APA sentence per metric, results.json equal to analyse() on
+the tidy frame, the generated effects in the right direction, the data-quality section, the
+CSV-folder input, and the bad-input contract (one stderr line, exit 2)."""
+
+from __future__ import annotations
+
+import json
+import os
+import sqlite3
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+from markupsafe import escape
+
+from analysis.data import load_study, tidy
+from analysis.metrics import BY_NAME, long_frame
+from analysis.report import build_report
+from analysis.stats import analyse
+from analysis.tables import apa_anova
+from study.cli import main
+from study.dbtools import export
+
+sys.path.insert(0, str(Path(__file__).parent))
+from fixtures_db import FixtureSettings, make_study_db  # noqa: E402
+
+SETTINGS = FixtureSettings(n_participants=6, samples=100, questions=12, baseline_questions=20)
+
+
+def _seed() -> int:
+    return int(os.environ.get("ASA_TEST_SEED", "20261123"))
+
+
+@pytest.fixture(scope="module")
+def study_db(tmp_path_factory) -> Path:
+    path = tmp_path_factory.mktemp("study") / "study.db"
+    return make_study_db(path, np.random.default_rng(_seed()), settings=SETTINGS)
+
+
+@pytest.fixture(scope="module")
+def report(study_db, tmp_path_factory):
+    out = tmp_path_factory.mktemp("report")
+    lines: list[str] = []
+    paths = build_report(study_db, out, progress=lines.append)
+    return paths, out, lines
+
+
+def run(capsys, *args: str) -> tuple[int, str, str]:
+    try:
+        main(list(args))
+        status = 0
+    except SystemExit as exit_:
+        status = int(exit_.code or 0)
+    captured = capsys.readouterr()
+    return status, captured.out, captured.err
+
+
+def test_files_and_inlined_figures(report):
+    paths, out, lines = report
+    html = paths.html.read_text(encoding="utf-8")
+    svgs = sorted(p for p in paths.figures if p.suffix == ".svg")
+    pngs = sorted(p for p in paths.figures if p.suffix == ".png")
+    assert [p.stem for p in svgs] == [p.stem for p in pngs]
+    assert all(p.is_file() and p.stat().st_size > 1000 for p in paths.figures)
+    assert {"tlx_profile", "clearance_distribution", "paths"} <= {p.stem for p in svgs}
+    assert {f"metric_{m}" for m in paths.metrics} <= {p.stem for p in svgs}
+    # every figure inlined once; nothing fetched from elsewhere (self-contained)
+    assert html.count("<svg") == len(svgs)
+    assert "<script src" not in html and "<link" not in html
+    for name in ("trials", "questions", "responses", "summary", "counterbalancing", "aborted"):
+        assert (out / "tables" / f"{name}.csv").is_file()
+    assert lines and lines[-1].startswith("wrote ")
+    assert "thesis-7-6" in html
+
+
+def test_apa_sentence_per_metric_and_results_json(study_db, report):
+    paths, _, _ = report
+    html = paths.html.read_text(encoding="utf-8")
+    results = json.loads(paths.results_json.read_text())
+    assert list(results) == list(paths.metrics)
+    frames = tidy(load_study(study_db))
+    for name, stored in results.items():
+        assert str(escape(apa_anova(stored))) in html
+        long = long_frame(frames, BY_NAME[name])
+        fresh = analyse(long, dv="value", within="mode", subject="participant")
+        assert json.loads(json.dumps(fresh)) == stored, name
+    # planned metrics of the thesis protocol come first
+    assert list(results)[:3] == ["completion_time_s", "collisions", "score_s"]
+    # the incomplete participant is dropped listwise, and the warning reaches the report
+    assert results["completion_time_s"]["dropped_subjects"] == ["P07"]
+    assert "P07" in html
+
+
+def test_effects_in_the_right_direction(report):
+    paths, _, _ = report
+    r = json.loads(paths.results_json.read_text())
+    time = r["completion_time_s"]
+    d = time["descriptives"]
+    assert d["manual"]["mean"] > d["reactive_bn"]["mean"] > d["contextual_task"]["mean"]
+    assert time["significant"] and time["posthoc"]["ran"]
+    pair = next(
+        p
+        for p in time["posthoc"]["lsd_paired"]
+        if {p["a"], p["b"]} == {"manual", "contextual_task"}
+    )
+    assert pair["significant"]
+    answer = r["secondary_answer_time_s"]
+    assert answer["levels"][-1] == "baseline"
+    assert all(
+        answer["descriptives"]["baseline"]["mean"] < answer["descriptives"][m]["mean"]
+        for m in ("manual", "reactive_bn", "contextual_task")
+    )
+
+
+def test_data_quality_and_counterbalancing(report):
+    paths, out, _ = report
+    html = paths.html.read_text(encoding="utf-8")
+    assert "input lost" in html  # the aborted trials are listed with their reason
+    counts = np.loadtxt(
+        out / "tables" / "counterbalancing.csv", delimiter=",", skiprows=1, usecols=(1, 2, 3)
+    )
+    # six complete participants over the six permutations (plus P07's first trial)
+    assert counts.sum() == 6 * 3 + 1
+    assert counts.min() >= 2
+
+
+def test_cli_and_csv_folder(study_db, tmp_path, capsys):
+    status, out, err = run(
+        capsys,
+        "report",
+        "--db",
+        str(study_db),
+        "--out",
+        str(tmp_path / "a"),
+        "--metric",
+        "completion_time_s",
+        "--metric",
+        "secondary_errors",
+    )
+    assert status == 0, err
+    assert out.splitlines()[0].endswith("report.html")
+    assert "asa report: reading" in err
+    export(study_db, tmp_path / "csv")
+    status, _, err = run(
+        capsys,
+        "report",
+        "--db",
+        str(tmp_path / "csv"),
+        "--out",
+        str(tmp_path / "b"),
+        "--metric",
+        "completion_time_s",
+        "--metric",
+        "secondary_errors",
+    )
+    assert status == 0, err
+    a = json.loads((tmp_path / "a" / "results.json").read_text())
+    b = json.loads((tmp_path / "b" / "results.json").read_text())
+    assert a == b and list(a) == ["completion_time_s", "secondary_errors"]
+
+
+def test_bad_input_one_line_exit_2(tmp_path, capsys, seed):
+    text = tmp_path / "notes.db"
+    text.write_text("not a database at all\n" * 40)
+    other = tmp_path / "other.db"
+    with sqlite3.connect(other) as con:
+        con.execute("create table things (id integer primary key)")
+    empty = make_study_db(
+        tmp_path / "empty.db",
+        np.random.default_rng(seed),
+        settings=replace(SETTINGS, n_participants=1, samples=10, aborted_retry=False),
+    )
+    with sqlite3.connect(empty) as con:
+        con.execute("update trial set status = 'aborted' where phase = 'main'")
+    cases = {
+        tmp_path / "missing.db": "no such file",
+        text: "notes.db",
+        other: "not an asa-study database",
+        empty: "no completed main trial",
+    }
+    for db, message in cases.items():
+        status, out, err = run(capsys, "report", "--db", str(db), "--out", str(tmp_path / "r"))
+        lines = [line for line in err.splitlines() if not line.startswith("asa report:")]
+        assert status == 2, (db, err)
+        assert len(lines) == 1 and lines[0].startswith("asa: error:") and message in lines[0]
+        assert "Traceback" not in err
+    status, _, err = run(
+        capsys, "report", "--db", str(empty), "--out", str(tmp_path / "r"), "--metric", "nope"
+    )
+    assert status == 2 and "'nope' is not known" in err
+
+
+@pytest.mark.slow
+def test_bench_group_quick():
+    from study.bench import run_benchmarks
+
+    figures = run_benchmarks(["report"], quick=True)
+    assert figures["report_s"] > 0 and figures["report_metrics"] >= 10
