@@ -430,8 +430,13 @@ def test_worlds_in_one_process_do_not_interfere(rng: np.random.Generator) -> Non
 
 def test_close_is_idempotent() -> None:
     world = World(open_room(), seed=0, components=())
+    client = world.client
     world.close()
     world.close()
+    assert world.client == -1
+    from sim._pybullet import pybullet
+
+    assert not pybullet.isConnected(physicsClientId=client)
 
 
 def test_bench_group_reports_its_figures() -> None:
