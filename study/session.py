@@ -215,6 +215,7 @@ class _Runner:
         clock: FreeClock | WallClock,
         camera_hz: float,
         on_tick: Callable[[int, TrialWriter], None] | None,
+        recordings: Path | None,
     ) -> None:
         self.protocol = protocol
         self.engine = engine
@@ -231,7 +232,9 @@ class _Runner:
         self.on_tick = on_tick
         self.scenes = _Scenes()
         self.folder, db_path = _db_folder(db)
-        self.db_path = db_path
+        self.recordings = (
+            recordings if recordings is not None else self.folder / f"{db_path.stem}_recordings"
+        )
         self.trials: list[TrialSummary] = []
 
     # -------------------------------------------------------------- database helpers
@@ -301,7 +304,7 @@ class _Runner:
             mode=mode,
             trial_values=values,
             recording_dir=self.folder,
-            recording_rel=lambda tid: recording_relpath(self.db_path, code, tid),
+            recording_rel=lambda tid: recording_relpath(self.folder, self.recordings, code, values),
             session_id=self.session_id,
             clock=self.clock,
             control=self.control,
@@ -593,6 +596,7 @@ def run_session(
     clock: FreeClock | WallClock | None = None,
     camera_hz: float | None = None,
     on_tick: Callable[[int, TrialWriter], None] | None = None,
+    recordings: str | Path | None = None,
 ) -> SessionSummary:
     """Run (or resume) one participant's session of ``protocol`` and store everything.
 
@@ -623,6 +627,10 @@ def run_session(
         Camera frames per second in the recordings; default 2 for humans, else 0.
     on_tick : callable, optional
         Passed to :func:`study.trial.run_trial`.
+    recordings : str or Path, optional
+        Folder for the trials' rerun recordings (``<code>/...rrd`` inside it); default
+        ``<db stem>_recordings`` beside the database. Paths are stored relative to the
+        database's folder.
 
     Returns
     -------
@@ -784,6 +792,7 @@ def run_session(
             clock=clock,
             camera_hz=camera_hz,
             on_tick=on_tick,
+            recordings=Path(recordings).resolve() if recordings is not None else None,
         )
         try:
             status = runner.run()

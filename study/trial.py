@@ -31,13 +31,19 @@ Decisions where the spec is silent:
   and ``resume`` events are stored. A free-running clock paced by nobody would spin, so
   a paused free-running trial waits 10 ms per poll.
 - Abort. ``control.abort()`` ends the trial at the next tick with status ``aborted``; the
-  outcome so far is stored in ``trial.outcome``.
+  outcome so far is stored in ``trial.outcome``. An exception inside the loop (or Ctrl-C)
+  stores the buffered rows and marks the trial ``aborted`` with the reason before it
+  propagates; everything that can fail on bad input (the tasks' settings) is built before
+  the trial row is written.
+- After the completing transaction the participant's optional ``end_trial(outcome)`` is
+  called (a synthetic participant rates the trial from it).
 - Question rows are written when the question is answered or times out (or, still
   unanswered, at the end of the trial); the ``question_shown`` event is written at once.
 - Baseline trials (no driving) run the same loop with no mode: the robot stays at A with
   ``v = 0`` and the samples record that, so every trial has samples at 20 Hz.
-- Recordings: ``<db stem>_recordings/<participant code>/trial_<id>.rrd`` beside the
-  database, the path stored relative to the database's folder. Camera frames are logged
+- Recordings: ``<db stem>_recordings/<code>/s<session>_<phase>_<ordinal>_a<attempt>.rrd``
+  beside the database by default (:func:`recording_relpath`; an existing file is never
+  overwritten), the path stored relative to the database's folder. Camera frames are logged
   at ``camera_hz`` (the caller's choice: the session engine uses 2 Hz for human
   participants and none for scripted and synthetic ones, whose sessions would otherwise
   spend most of their time rendering).
@@ -49,6 +55,7 @@ from __future__ import annotations
 
 import datetime as dt
 import math
+import os
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
@@ -220,9 +227,21 @@ def _finite(value: float | None) -> float | None:
     return None if value is None or not math.isfinite(value) else float(value)
 
 
-def recording_relpath(db_path: Path, code: str, trial_id: int) -> str:
-    """``<db stem>_recordings/<code>/trial_<id>.rrd``, relative to the database's folder."""
-    return f"{db_path.stem}_recordings/{code}/trial_{trial_id}.rrd"
+def recording_relpath(folder: Path, recordings: Path, code: str, values: dict[str, Any]) -> str:
+    """Where a trial's recording goes, relative to the database's ``folder``.
+
+    ``<recordings>/<code>/s<session>_<phase>_<ordinal>_a<attempt>.rrd``; if that file exists
+    already (left by an earlier database of the same name), ``_2``, ``_3``, ... is appended
+    rather than overwriting it.
+    """
+    base = recordings / code / (
+        f"s{values['session_id']}_{values['phase']}_{values['ordinal']}_a{values['attempt']}"
+    )
+    path, n = base.with_suffix(".rrd"), 1
+    while path.exists():
+        n += 1
+        path = base.with_name(f"{base.name}_{n}.rrd")
+    return os.path.relpath(path, folder)
 
 
 # ------------------------------------------------------------------------- writer
@@ -239,6 +258,7 @@ class TrialWriter:
         self.engine = engine
         self.session_id = session_id
         self.trial_id = -1
+        self.recording_path = ""
         self.samples: list[dict[str, Any]] = []
         self.events: list[dict[str, Any]] = []
         self.questions: list[dict[str, Any]] = []
@@ -250,7 +270,7 @@ class TrialWriter:
             row = Trial(**values, status="running", started_at=_now())
             s.add(row)
             s.flush()
-            row.recording_path = recording(row.id)
+            row.recording_path = self.recording_path = recording(row.id)
             s.add(
                 Event(
                     session_id=self.session_id,
@@ -285,13 +305,32 @@ class TrialWriter:
             s.execute(insert(Event), self.events)
         if self.questions:
             s.execute(insert(Question), self.questions)
+
+    def _clear(self) -> None:
+        """Forget the buffered rows: only once their transaction has committed."""
         self.samples, self.events, self.questions = [], [], []
 
     def flush(self, tick: int) -> None:
-        """Write what is buffered in one transaction."""
+        """Write what is buffered in one transaction (kept for a retry if it fails)."""
         with Session(self.engine) as s, s.begin():
             self._write(s)
+        self._clear()
         self.commits.append((tick, "flush"))
+
+    def abort(self, tick: int, t: float, reason: str) -> None:
+        """After an exception in the loop: store what is buffered and mark the trial
+        ``aborted`` with ``reason`` in one transaction (best effort: a database that
+        fails here leaves the trial ``running`` for a resumed session to abort)."""
+        self.event(t, "trial_ended", status="aborted", reason=reason)
+        with Session(self.engine) as s, s.begin():
+            self._write(s)
+            row = s.get(Trial, self.trial_id)
+            if row is not None:
+                row.status = "aborted"
+                row.outcome = {"ticks": tick, "duration_s": t, "aborted_reason": reason}
+                row.ended_at = _now()
+        self._clear()
+        self.commits.append((tick, "abort"))
 
     def finish(self, tick: int, values: dict[str, Any]) -> None:
         """The last rows and the trial's outcome, status and end time: one transaction."""
@@ -302,6 +341,7 @@ class TrialWriter:
             for key, value in values.items():
                 setattr(row, key, value)
             row.ended_at = _now()
+        self._clear()
         self.commits.append((tick, "end"))
 
 
@@ -382,9 +422,6 @@ def run_trial(
     clock = clock if clock is not None else FreeClock()
     control = control if control is not None else ExperimenterControl()
     scenario, world = scene.scenario, scene.world
-    writer = TrialWriter(engine, session_id)
-    trial_id = writer.start(trial_values, recording_rel)
-    rec_path = recording_dir / recording_rel(trial_id)
     rng = np.random.default_rng(spec.seed)
     obs = world.reset(seed=int(rng.integers(2**31)))
     robot = RobotModel.from_spec(scenario.robot, dt=DT)
@@ -398,18 +435,9 @@ def run_trial(
         elif len(scenario.question_region):
             secondary = SecondaryTask(rng, settings=spec.secondary)
     time_limit = spec.primary.timeout_s if spec.primary is not None else math.inf
-    participant.begin_trial(
-        TrialInfo(
-            phase=spec.phase,
-            scenario=scenario,
-            route=spec.primary.route if spec.primary is not None else (),
-            inspection=bool(spec.primary and spec.primary.inspection_required),
-            secondary=secondary is not None,
-            time_limit_s=time_limit,
-            drive=not spec.baseline,
-            primary=spec.primary,
-        )
-    )
+    writer = TrialWriter(engine, session_id)
+    trial_id = writer.start(trial_values, recording_rel)
+    rec_path = recording_dir / writer.recording_path
     footprint = scenario.robot.footprint()
     camera_every = max(1, round(1.0 / (DT * spec.camera_hz))) if spec.camera_hz > 0 else 0
     intention = getattr(participant, "intention", None)
@@ -463,14 +491,27 @@ def run_trial(
         else:
             writer.event(ev.t, ev.kind, block=ev.block_index)
 
-    recorder = TrialRecorder(
-        rec_path,
-        trial_key=f"{trial_values['phase']}/{trial_id}",
-        scenario=scenario,
-        components=scene.components,
-        grid=scene.grid,
-    )
+    recorder: TrialRecorder | None = None
     try:
+        recorder = TrialRecorder(
+            rec_path,
+            trial_key=f"{trial_values['phase']}/{trial_id}",
+            scenario=scenario,
+            components=scene.components,
+            grid=scene.grid,
+        )
+        participant.begin_trial(
+            TrialInfo(
+                phase=spec.phase,
+                scenario=scenario,
+                route=spec.primary.route if spec.primary is not None else (),
+                inspection=bool(spec.primary and spec.primary.inspection_required),
+                secondary=secondary is not None,
+                time_limit_s=time_limit,
+                drive=not spec.baseline,
+                primary=spec.primary,
+            )
+        )
         clock.start()
         while True:
             question = secondary.current.text if secondary and secondary.current else None
@@ -598,8 +639,23 @@ def run_trial(
             if done:
                 break
             clock.wait()
+    except BaseException as exc:
+        # Keep what was buffered and do not leave a ``running`` row behind; a resumed
+        # session runs the trial again.
+        reason = (
+            "interrupted"
+            if isinstance(exc, KeyboardInterrupt)
+            else f"error: {type(exc).__name__}: {exc}"
+        )
+        writer.questions.extend(open_questions.values())
+        try:
+            writer.abort(tick, t, reason)
+        except Exception:  # the database itself failed; resume aborts the trial
+            pass
+        raise
     finally:
-        recorder.close()
+        if recorder is not None:
+            recorder.close()
     writer.questions.extend(open_questions.values())  # shown, never resolved
     outcome: dict[str, Any] = {"ticks": tick, "duration_s": t}
     values: dict[str, Any] = {"status": status, "tick_jitter_ms": clock.jitter_p99_ms()}
@@ -624,4 +680,7 @@ def run_trial(
     writer.event(t, "trial_ended", status=status)
     values["outcome"] = outcome
     writer.finish(tick, values)
+    end_trial = getattr(participant, "end_trial", None)
+    if end_trial is not None:
+        end_trial(outcome)
     return TrialResult(trial_id, status, outcome, tick, t)

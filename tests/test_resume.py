@@ -101,8 +101,10 @@ def _check_resumed(before: dict[int, tuple], db: Path) -> None:
     for tid, row in before.items():
         if row[4] == "completed":
             assert after[tid] == row  # never repeated nor overwritten
-        elif row[4] == "running":
+        elif row[4] in ("running", "aborted"):
             assert after[tid][4] == "aborted"  # kept, marked aborted
+            if row[4] == "aborted":
+                assert after[tid] == row  # an exception already stored its end
             again = [r for i, r in after.items() if i > tid and r[:2] == row[:2]]
             assert any(r[4] == "completed" and r[2] > row[2] for r in again)
     # every (phase, ordinal) completed exactly once
@@ -118,7 +120,7 @@ def _check_resumed(before: dict[int, tuple], db: Path) -> None:
     assert report.clean, report.text()
 
 
-def test_crash_at_a_random_tick_then_resume(tmp_path, seed):
+def test_exception_at_a_random_tick_then_resume(tmp_path, seed):
     protocol = load_protocol(_protocol(tmp_path, seed))
     db = tmp_path / "s.db"
     rng = np.random.default_rng(seed)
@@ -143,7 +145,12 @@ def test_crash_at_a_random_tick_then_resume(tmp_path, seed):
             on_tick=on_tick,
         )
     before = _snapshot(db)
-    assert sum(r[4] == "running" for r in before.values()) == 1
+    # the exception stored the trial's rows and ended it as aborted, naming the error
+    assert not any(r[4] == "running" for r in before.values())
+    aborted = [r for r in before.values() if r[4] == "aborted"]
+    assert len(aborted) == 1
+    assert aborted[0][7]["aborted_reason"].startswith("error: Crash")
+    assert aborted[0][8] is not None
     with pytest.raises(ValueError, match="already has a session"):
         run_session(
             protocol,

@@ -204,7 +204,7 @@ def test_recordings_verify_and_db_check_is_clean(session_run):
     report = check(db)
     assert report.clean, report.text()
     assert report.counts["trials_checked"] == report.counts["trial"]
-    rrd = sorted((db.parent / "study_recordings" / "P02").glob("trial_*.rrd"))
+    rrd = sorted((db.parent / "study_recordings" / "P02").glob("*.rrd"))
     assert len(rrd) == report.counts["trial"]
 
 

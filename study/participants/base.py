@@ -6,7 +6,8 @@ debrief), :meth:`Participant.fill` for a questionnaire, :meth:`Participant.choos
 NASA-TLX pairwise comparisons, :meth:`Participant.begin_trial` before a trial, and
 :meth:`Participant.act` once per control tick. ``kind`` and ``parameters`` are stored with
 the participant row. A participant may also expose ``intention() -> (task, target)``
-(ground truth stored in every sample) and ``end_trial(outcome)``; both are optional and
+(ground truth stored in every sample) and ``end_trial(outcome)`` (called with the trial's
+stored outcome dict once it is committed, before any questionnaire); both are optional and
 looked up with ``getattr``.
 """
 
