@@ -234,9 +234,8 @@ def recording_relpath(folder: Path, recordings: Path, code: str, values: dict[st
     already (left by an earlier database of the same name), ``_2``, ``_3``, ... is appended
     rather than overwriting it.
     """
-    base = recordings / code / (
-        f"s{values['session_id']}_{values['phase']}_{values['ordinal']}_a{values['attempt']}"
-    )
+    name = f"s{values['session_id']}_{values['phase']}_{values['ordinal']}_a{values['attempt']}"
+    base = recordings / code / name
     path, n = base.with_suffix(".rrd"), 1
     while path.exists():
         n += 1
