@@ -23,10 +23,11 @@ Decisions where the spec is silent:
   any other code gets the smallest index no participant of the study has. The order is
   ``study.counterbalance.assign_indexed`` row ``order_index`` (the random scheme draws
   from a generator seeded with the study seed).
-- Seeds: the participant's seed is ``seed`` if given, else derived from the study seed and
-  the order index; each trial's seed is derived from the participant's seed, the phase,
-  the ordinal and the attempt (``numpy.random.SeedSequence``), so a re-run trial gets
-  fresh noise and questions and the same session is reproducible.
+- Seeds: the participant's seed is ``seed`` if given, else :func:`default_seed` of the
+  study seed and the participant code (what ``asa run`` uses too); each trial's seed is
+  derived from the participant's seed, the phase, the ordinal and the attempt
+  (``numpy.random.SeedSequence``), so a re-run trial gets fresh noise and questions and
+  the same session is reproducible.
 - Non-trial phases (briefing, experience, debrief) are marked done by a ``phase_done``
   event, written in the same transaction as their responses, so a resumed session skips
   them.
@@ -50,6 +51,7 @@ Decisions where the spec is silent:
 from __future__ import annotations
 
 import datetime as dt
+import hashlib
 import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -69,7 +71,7 @@ from sim.scenario import load_scenario
 from sim.semantics import derive_components
 from sim.world import World
 from study import __version__
-from study.counterbalance import assign_indexed
+from study.counterbalance import assign_indexed, cycle_length
 from study.protocol import (
     Baseline,
     Briefing,
@@ -105,6 +107,7 @@ from study.trial import (
 from tasks.primary import PrimarySettings, route_from_points
 
 CODE_PATTERN = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_-]{0,63}$")
+MAX_RANDOM_INDEX = 100_000  # participant numbers the random scheme serves
 _PHASE_INDEX = {"training": 1, "practice": 2, "baseline": 3, "main": 4}
 DEFAULT_INSTRUCTIONS = {
     "training": "Training: drive freely and get used to the robot.",
@@ -157,6 +160,12 @@ def check_code(code: str) -> str:
             f"letter or digit, got {code!r}"
         )
     return code
+
+
+def default_seed(study_seed: int, code: str) -> int:
+    """A participant's seed when none is given: a 31-bit hash of the study seed and code."""
+    digest = hashlib.sha256(f"{study_seed}:{code}".encode()).digest()
+    return int.from_bytes(digest[:4], "little") >> 1
 
 
 def derive_seed(*parts: int) -> int:
@@ -739,9 +748,17 @@ def run_session(
                     )
                 if person is None:
                     index = _order_index(s, study, code)
+                    cycle = cycle_length(len(protocol.modes), protocol.counterbalancing)
+                    if cycle is None and index >= MAX_RANDOM_INDEX:
+                        raise ValueError(
+                            f"participant code: {code!r} asks for participant number "
+                            f"{index + 1}; the random scheme draws orders in sequence up to "
+                            f"{MAX_RANDOM_INDEX}, use a smaller number"
+                        )
+                    # deterministic schemes repeat with their cycle: only compute one cycle
                     rows = assign_indexed(
                         protocol.modes,
-                        index + 1,
+                        (index % cycle if cycle else index) + 1,
                         protocol.counterbalancing,
                         rng=np.random.default_rng(study.seed),
                     )
@@ -750,9 +767,9 @@ def run_session(
                         code=code,
                         kind=kind,
                         parameters=dict(getattr(participant, "parameters", {})),
-                        order_index=rows[index][0],
-                        mode_order=list(rows[index][1]),
-                        seed=int(seed) if seed is not None else derive_seed(study.seed, index),
+                        order_index=rows[-1][0],
+                        mode_order=list(rows[-1][1]),
+                        seed=int(seed) if seed is not None else default_seed(study.seed, code),
                     )
                     s.add(person)
                     s.flush()

@@ -52,9 +52,11 @@ from sqlalchemy import (
     select,
 )
 from sqlalchemy.engine import Engine
+from sqlalchemy.exc import DBAPIError
 from sqlalchemy.orm import DeclarativeBase, Mapped, Session, mapped_column, relationship
 
 SCHEMA_VERSION = 1
+BUSY_TIMEOUT_MS = 30_000  # [ms] wait for another process's write lock
 
 TRIAL_PHASES = ("training", "practice", "baseline", "main")
 TRIAL_STATUSES = ("running", "completed", "aborted")
@@ -233,7 +235,11 @@ def database_url(db: str | Path) -> str:
 def _sqlite_pragmas(dbapi_connection: Any, _record: Any) -> None:
     cursor = dbapi_connection.cursor()
     cursor.execute("PRAGMA journal_mode=WAL")
-    cursor.execute("PRAGMA synchronous=NORMAL")  # WAL + NORMAL: durable at checkpoints, fast
+    # FULL: a committed transaction survives a power cut, not only a crash of the process
+    # (WAL + NORMAL may lose the last commits); the trial loop commits about once a second.
+    cursor.execute("PRAGMA synchronous=FULL")
+    # another process (asa db check, export, a second session) may hold the write lock
+    cursor.execute(f"PRAGMA busy_timeout={BUSY_TIMEOUT_MS}")
     cursor.execute("PRAGMA foreign_keys=ON")
     cursor.close()
 
@@ -242,11 +248,27 @@ def open_database(db: str | Path, *, create: bool = True) -> Engine:
     """Open (and with ``create`` make) a study database and check it is ours.
 
     Raises ``ValueError`` naming the database when it exists but was not made by this
-    platform, or by a newer schema version.
+    platform, by a newer schema version, is not an SQLite file at all, or cannot be
+    opened or written (a missing folder, no permission, a full disk).
     """
     url = database_url(db)
-    if url.startswith("sqlite:///") and not create and not Path(url[10:]).exists():
-        raise FileNotFoundError(2, "No such file", url[10:])
+    if url.startswith("sqlite:///"):
+        path = Path(url[10:])
+        if not create and not path.exists():
+            raise FileNotFoundError(2, "No such file", str(path))
+        if not path.parent.is_dir():
+            raise ValueError(f"{db}: the folder {path.parent} does not exist")
+    try:
+        return _open(db, url, create)
+    except DBAPIError as error:
+        reason = " ".join(str(error.orig).split()) if error.orig is not None else str(error)
+        raise ValueError(
+            f"{db}: cannot be used as a study database ({reason}); give an asa-study "
+            "SQLite file or a new file name in a writable folder"
+        ) from error
+
+
+def _open(db: str | Path, url: str, create: bool) -> Engine:
     engine = create_engine(url)
     if engine.dialect.name == "sqlite":
         event.listen(engine, "connect", _sqlite_pragmas)

@@ -37,6 +37,10 @@ Decisions where the spec is silent:
   the trial row is written.
 - After the completing transaction the participant's optional ``end_trial(outcome)`` is
   called (a synthetic participant rates the trial from it).
+- Before ``begin_trial`` the participant's optional ``attach(world, event)`` is called with
+  the trial's World (read only: the screen renders the camera from ``true_pose()`` and
+  counts ``contacts()``) and ``event(t, kind, **detail)``, which buffers an event row of
+  this trial (the human interface stores ``input_lost`` / ``input_back`` with it).
 - Question rows are written when the question is answered or times out (or, still
   unanswered, at the end of the trial); the ``question_shown`` event is written at once.
 - Baseline trials (no driving) run the same loop with no mode: the robot stays at A with
@@ -197,6 +201,19 @@ class TrialSpec:
     end_on_collision: bool = False
     feedback: str = ""  # shown on the screen from the start (practice)
     camera_hz: float = 0.0  # [Hz] camera frames in the recording; 0: none
+
+    def __post_init__(self) -> None:
+        # a trial must be able to end: by its driving task (which times out) or, for the
+        # baseline block, by its last question
+        if self.baseline and self.secondary is None:
+            raise ValueError("trial spec: field 'secondary': a baseline trial needs questions")
+        if not self.baseline and self.primary is None:
+            raise ValueError(
+                "trial spec: field 'primary': a driving trial needs a primary task (it ends "
+                "the trial); only the baseline block has none"
+            )
+        if not (math.isfinite(self.camera_hz) and self.camera_hz >= 0):
+            raise ValueError(f"trial spec: field 'camera_hz': must be >= 0, got {self.camera_hz}")
 
 
 @dataclass(frozen=True, slots=True)
@@ -499,6 +516,9 @@ def run_trial(
             components=scene.components,
             grid=scene.grid,
         )
+        attach = getattr(participant, "attach", None)  # the screen's hook (study.ui)
+        if attach is not None:
+            attach(world, writer.event)
         participant.begin_trial(
             TrialInfo(
                 phase=spec.phase,

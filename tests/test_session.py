@@ -344,16 +344,8 @@ def test_cli_refuses_human_input_and_bad_code(tmp_path):
 
 @pytest.mark.slow
 def test_full_pilot_protocol_session(tmp_path, seed):
-    """pilot.toml through every phase (its mode list cut to the registered modes)."""
-    from protocols import PROTOCOL_DIR
-    from study.protocol import parse_protocol
-
-    text = (PROTOCOL_DIR / "pilot.toml").read_text(encoding="utf-8")
-    if "contextual_task" not in available_modes():
-        text = text.replace('"reactive_bn", "contextual_task"]', '"reactive_bn"]')
-    path = tmp_path / "pilot.toml"
-    path.write_text(text, encoding="utf-8")
-    protocol = parse_protocol(text, str(path))
+    """The shipped pilot.toml through every phase, all three modes."""
+    protocol = load_protocol("pilot")
     db = tmp_path / "pilot.db"
     lines: list[str] = []
     summary = run_session(

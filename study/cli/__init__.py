@@ -127,6 +127,7 @@ def main(argv: list[str] | None = None) -> None:
         FileNotFoundError,
         IsADirectoryError,
         NotADirectoryError,
+        PermissionError,
     ) as error:
         if debug:
             raise
