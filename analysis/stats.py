@@ -67,6 +67,7 @@ __all__ = [
     "analyse",
     "descriptives",
     "gate_p",
+    "gate_source",
     "greenhouse_geisser",
     "lsd_paired",
     "lsd_pooled",
@@ -638,11 +639,17 @@ def gate_p(
     SPSS prints both rows and leaves the choice to the analyst; this is the common rule
     (e.g. Field 2009, ch. 13). afex always corrects (``correction = "GG"``).
     """
+    source = gate_source(sphericity, gate=gate)
+    return gg["p"] if source == "greenhouse_geisser" else anova["p_unc"]
+
+
+def gate_source(sphericity: dict, *, gate: str = "auto") -> str:
+    """Which p :func:`gate_p` takes: ``"greenhouse_geisser"`` or ``"uncorrected"``."""
     if gate not in GATES:
         raise ValueError(f"gate {gate!r} is not allowed; choose one of {', '.join(GATES)}")
     if gate == "greenhouse_geisser" or (gate == "auto" and sphericity["violated"]):
-        return gg["p"]
-    return anova["p_unc"]
+        return "greenhouse_geisser"
+    return "uncorrected"
 
 
 def lsd_paired(
@@ -776,7 +783,8 @@ def analyse(
         JSON-safe (plain Python numbers, None instead of NaN), keys ``n_subjects``,
         ``levels``, ``descriptives`` {level: {mean, sd, se, n}}, ``anova`` (see
         :func:`rm_anova`), ``sphericity`` (see :func:`mauchly`), ``greenhouse_geisser``
-        {eps, p}, ``p_gate``, ``significant``, ``posthoc`` {ran, lsd_paired, lsd_pooled}
+        {eps, p}, ``p_gate``, ``p_gate_source`` ("uncorrected" or "greenhouse_geisser":
+        which p the gate used), ``significant``, ``posthoc`` {ran, lsd_paired, lsd_pooled}
         (pair lists empty unless ``significant``), ``warnings`` (list of str) and
         ``dropped_subjects`` (list of str).
 
@@ -838,6 +846,7 @@ def analyse(
             "sphericity": sphericity,
             "greenhouse_geisser": gg_out,
             "p_gate": p,
+            "p_gate_source": gate_source(sphericity, gate=gate),
             "significant": bool(significant),
             "posthoc": {"ran": bool(significant), "lsd_paired": paired, "lsd_pooled": pooled},
             "warnings": notes,

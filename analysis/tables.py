@@ -168,16 +168,9 @@ def _num(value: float | None, digits: int = 2, *, zero: bool = True) -> str:
 
 
 def _uses_gg(result: dict) -> bool:
-    """Whether the gate took the Greenhouse-Geisser p (and eps < 1 makes it differ)."""
-    gg = result["greenhouse_geisser"]
-    return (
-        result["p_gate"] is not None
-        and gg["p"] is not None
-        and result["p_gate"] == gg["p"]
-        and gg["eps"] is not None
-        and gg["eps"] < 1.0
-        and gg["p"] != result["anova"]["p_unc"]
-    )
+    """Whether the gate took the Greenhouse-Geisser p with eps < 1 (corrected dfs differ)."""
+    eps = result["greenhouse_geisser"]["eps"]
+    return result["p_gate_source"] == "greenhouse_geisser" and eps is not None and eps < 1.0
 
 
 def apa_anova(result: dict) -> str:

@@ -27,6 +27,7 @@ KEYS = {
     "sphericity",
     "greenhouse_geisser",
     "p_gate",
+    "p_gate_source",
     "significant",
     "posthoc",
     "warnings",

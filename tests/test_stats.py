@@ -43,6 +43,7 @@ KEYS = {
     "sphericity",
     "greenhouse_geisser",
     "p_gate",
+    "p_gate_source",
     "significant",
     "posthoc",
     "warnings",
@@ -412,6 +413,10 @@ def test_gate_consistency_on_data(rng):
                 else out["anova"]["p_unc"],
             }[gate]
             assert out["p_gate"] == expected
+            gg_used = gate == "greenhouse_geisser" or (
+                gate == "auto" and out["sphericity"]["violated"]
+            )
+            assert out["p_gate_source"] == ("greenhouse_geisser" if gg_used else "uncorrected")
             assert out["significant"] == (out["p_gate"] < 0.05)
             assert out["posthoc"]["ran"] == out["significant"]
             n_pairs = k * (k - 1) // 2 if out["significant"] else 0
