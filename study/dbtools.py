@@ -48,7 +48,7 @@ from study.storage import (
     Sample,
     SessionRow,
     Trial,
-    database_url,
+    database_file,
     get_study,
     open_database,
 )
@@ -84,13 +84,6 @@ class CheckReport:
         lines.append("  " + ", ".join(f"{k} {v}" for k, v in self.counts.items()))
         lines += [f"  - {p}" for p in self.problems]
         return "\n".join(lines)
-
-
-def _folder(db: str | Path) -> Path:
-    url = database_url(db)
-    if url.startswith("sqlite:///"):
-        return Path(url[len("sqlite:///") :]).parent
-    return Path.cwd()
 
 
 def _after_trial(protocol_text: str) -> tuple[bool, str] | None:
@@ -140,7 +133,7 @@ def check(db: str | Path, *, verify_recordings: bool = True) -> CheckReport:
     engine = open_database(db, create=False)
     problems: list[str] = []
     counts: dict[str, int] = {}
-    folder = _folder(db)
+    folder = database_file(db).parent
     try:
         with Session(engine) as s:
             for table in Base.metadata.sorted_tables:

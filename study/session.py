@@ -50,7 +50,6 @@ Decisions where the spec is silent:
 
 from __future__ import annotations
 
-import datetime as dt
 import hashlib
 import re
 from collections.abc import Callable, Sequence
@@ -89,9 +88,10 @@ from study.storage import (
     SessionRow,
     Study,
     Trial,
-    database_url,
+    database_file,
     get_study,
     open_database,
+    utc_now,
 )
 from study.trial import (
     ExperimenterControl,
@@ -116,10 +116,6 @@ DEFAULT_INSTRUCTIONS = {
     "main": "Drive from A to B and back to A; inspect the red object on the way; "
     "answer the questions when they appear.",
 }
-
-
-def _now() -> dt.datetime:
-    return dt.datetime.now(dt.UTC)
 
 
 @dataclass(frozen=True, slots=True)
@@ -171,15 +167,6 @@ def default_seed(study_seed: int, code: str) -> int:
 def derive_seed(*parts: int) -> int:
     """A 31-bit seed derived from integers (``numpy.random.SeedSequence``)."""
     return int(np.random.SeedSequence([int(p) for p in parts]).generate_state(1)[0] >> 1)
-
-
-def _db_folder(db: str | Path) -> tuple[Path, Path]:
-    """(folder for recordings, a path whose stem names them)."""
-    url = database_url(db)
-    if url.startswith("sqlite:///"):
-        path = Path(url[len("sqlite:///") :])
-        return path.parent, path
-    return Path.cwd(), Path.cwd() / "asa_study.db"
 
 
 class _Scenes:
@@ -240,7 +227,8 @@ class _Runner:
         self.camera_hz = camera_hz
         self.on_tick = on_tick
         self.scenes = _Scenes()
-        self.folder, db_path = _db_folder(db)
+        db_path = database_file(db)
+        self.folder = db_path.parent
         self.recordings = (
             recordings if recordings is not None else self.folder / f"{db_path.stem}_recordings"
         )
@@ -563,7 +551,7 @@ class _Runner:
             row = s.get(SessionRow, self.session_id)
             assert row is not None  # created by run_session
             row.status = status
-            row.ended_at = _now()
+            row.ended_at = utc_now()
             if note:
                 row.note = f"{row.note}; {note}" if row.note else note
         self.progress(f"{self.code} session {status}" + (f" ({note})" if note else ""))
@@ -719,7 +707,7 @@ def run_session(
                 ).all()
                 for trial in stale:
                     trial.status = "aborted"
-                    trial.ended_at = _now()
+                    trial.ended_at = utc_now()
                     trial.outcome = {**trial.outcome, "aborted_reason": "resumed after a crash"}
                 s.add(
                     Event(

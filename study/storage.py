@@ -63,7 +63,8 @@ TRIAL_STATUSES = ("running", "completed", "aborted")
 PARTICIPANT_KINDS = ("human", "synthetic", "scripted")
 
 
-def _now() -> dt.datetime:
+def utc_now() -> dt.datetime:
+    """The current time, timezone-aware UTC (every timestamp the platform stores)."""
     return dt.datetime.now(dt.UTC)
 
 
@@ -85,7 +86,7 @@ class Study(Base):
     protocol_sha256: Mapped[str] = mapped_column(String(64))
     platform_version: Mapped[str] = mapped_column(String(64))
     seed: Mapped[int] = mapped_column(Integer)
-    created_at: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True), default=_now)
+    created_at: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True), default=utc_now)
 
     participants: Mapped[list[Participant]] = relationship(back_populates="study")
 
@@ -103,7 +104,7 @@ class Participant(Base):
         default=list
     )  # e.g. ["manual", "reactive_bn", ...]
     seed: Mapped[int] = mapped_column(Integer)
-    created_at: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True), default=_now)
+    created_at: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True), default=utc_now)
 
     study: Mapped[Study] = relationship(back_populates="participants")
     sessions: Mapped[list[SessionRow]] = relationship(back_populates="participant")
@@ -117,7 +118,7 @@ class SessionRow(Base):
     __tablename__ = "session"
     id: Mapped[int] = mapped_column(primary_key=True)
     participant_id: Mapped[int] = mapped_column(ForeignKey("participant.id"))
-    started_at: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True), default=_now)
+    started_at: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True), default=utc_now)
     ended_at: Mapped[dt.datetime | None] = mapped_column(DateTime(timezone=True))
     status: Mapped[str] = mapped_column(String(16), default="running")  # running/completed/aborted
     resumed: Mapped[bool] = mapped_column(Boolean, default=False)
@@ -140,7 +141,7 @@ class Trial(Base):
     scenario: Mapped[str] = mapped_column(String(200))
     seed: Mapped[int] = mapped_column(Integer)
     status: Mapped[str] = mapped_column(String(16), default="running")  # TRIAL_STATUSES
-    started_at: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True), default=_now)
+    started_at: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True), default=utc_now)
     ended_at: Mapped[dt.datetime | None] = mapped_column(DateTime(timezone=True))
     # outcome, set in the completing transaction
     completed_task: Mapped[bool | None] = mapped_column(Boolean)  # False on timeout
@@ -191,7 +192,7 @@ class Event(Base):
     t: Mapped[float] = mapped_column(Float)  # [s] trial time (session time outside trials)
     kind: Mapped[str] = mapped_column(String(32))
     detail: Mapped[dict[str, Any]] = mapped_column(default=dict)
-    created_at: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True), default=_now)
+    created_at: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True), default=utc_now)
 
 
 class Question(Base):
@@ -220,7 +221,7 @@ class Response(Base):
     item: Mapped[str] = mapped_column(String(64))
     value: Mapped[float | None] = mapped_column(Float)
     text: Mapped[str] = mapped_column(Text, default="")
-    created_at: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True), default=_now)
+    created_at: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True), default=utc_now)
 
 
 # ------------------------------------------------------------------------- engine
@@ -230,6 +231,15 @@ def database_url(db: str | Path) -> str:
     """A path becomes a SQLite URL; anything with ``://`` is taken as a SQLAlchemy URL."""
     text = str(db)
     return text if "://" in text else f"sqlite:///{Path(text).resolve()}"
+
+
+def database_file(db: str | Path) -> Path:
+    """The SQLite file of ``db`` (a path or URL); for other databases a stand-in path in
+    the working folder whose parent and stem name the recordings folder."""
+    url = database_url(db)
+    if url.startswith("sqlite:///"):
+        return Path(url[len("sqlite:///") :])
+    return Path.cwd() / "asa_study.db"
 
 
 def _sqlite_pragmas(dbapi_connection: Any, _record: Any) -> None:

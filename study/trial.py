@@ -57,7 +57,6 @@ Decisions where the spec is silent:
 
 from __future__ import annotations
 
-import datetime as dt
 import math
 import os
 import time
@@ -77,7 +76,7 @@ from sim.scenario import Scenario, point_in_region
 from sim.types import SemanticComponent
 from sim.world import World
 from study.recording import TrialRecorder
-from study.storage import Event, Question, Sample, Trial
+from study.storage import Event, Question, Sample, Trial, utc_now
 from study.types import ParticipantInput, ScreenState, TickRecord, TrialInfo
 from tasks.primary import PrimarySettings, PrimaryTask, footprint_clearance
 from tasks.secondary import SecondaryEvent, SecondarySettings, SecondaryTask, summarise
@@ -86,10 +85,6 @@ DT = 0.05  # [s] control tick (20 Hz)
 FLUSH_EVERY_TICKS = 20  # one transaction per simulated second at least
 _ZERO3 = np.zeros(3)
 _ZERO3.setflags(write=False)
-
-
-def _now() -> dt.datetime:
-    return dt.datetime.now(dt.UTC)
 
 
 # ------------------------------------------------------------------------- clocks
@@ -283,7 +278,7 @@ class TrialWriter:
     def start(self, values: dict[str, Any], recording: Callable[[int], str]) -> int:
         """Insert the trial row (status running) and its start event; returns its id."""
         with Session(self.engine) as s, s.begin():
-            row = Trial(**values, status="running", started_at=_now())
+            row = Trial(**values, status="running", started_at=utc_now())
             s.add(row)
             s.flush()
             row.recording_path = self.recording_path = recording(row.id)
@@ -310,7 +305,7 @@ class TrialWriter:
                 "t": float(t),
                 "kind": kind,
                 "detail": _jsonable(detail),
-                "created_at": _now(),
+                "created_at": utc_now(),
             }
         )
 
@@ -344,7 +339,7 @@ class TrialWriter:
             if row is not None:
                 row.status = "aborted"
                 row.outcome = {"ticks": tick, "duration_s": t, "aborted_reason": reason}
-                row.ended_at = _now()
+                row.ended_at = utc_now()
         self._clear()
         self.commits.append((tick, "abort"))
 
@@ -356,7 +351,7 @@ class TrialWriter:
             assert row is not None  # written by start()
             for key, value in values.items():
                 setattr(row, key, value)
-            row.ended_at = _now()
+            row.ended_at = utc_now()
         self._clear()
         self.commits.append((tick, "end"))
 
