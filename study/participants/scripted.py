@@ -22,6 +22,9 @@ Behaviour (issue 4, the session engine's brief):
   appeared, correctly with probability ``accuracy`` (a draw from the participant's
   generator per question); the arithmetic is read from the question text.
 - **Questionnaires.** Valid values drawn uniformly from each item's allowed values.
+- **Getting unstuck.** Pushing the stick for ``stuck_s`` while the robot neither moves
+  nor turns (an assistance or the safety layer holding it against an obstacle) makes it
+  back away, opposite to where it pushed, for ``backoff_s``, then follow the plan again.
 
 Deterministic for a given generator seed: every draw comes from the passed-in
 ``numpy.random.Generator``; grids and plans are cached per scenario.
@@ -60,10 +63,20 @@ class ScriptedSettings:
     orbit_speed: float = 0.3  # [m/s] sideways while inspecting
     arc_margin_deg: float = 30.0  # [deg] driven beyond the required arc
     answer_delay_s: float = 1.2  # [s] from a question appearing to the answer
+    stuck_s: float = 1.5  # [s] pushing without moving this long counts as stuck
+    backoff_s: float = 0.8  # [s] then it backs away from where it was pushing
     accuracy: float = 0.9  # probability of a right answer
 
     def __post_init__(self) -> None:
-        for name in ("speed", "lookahead_m", "yaw_gain", "orbit_speed", "answer_delay_s"):
+        for name in (
+            "speed",
+            "lookahead_m",
+            "yaw_gain",
+            "orbit_speed",
+            "answer_delay_s",
+            "stuck_s",
+            "backoff_s",
+        ):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"ScriptedSettings: field '{name}': must be > 0, got {value!r}")
@@ -141,6 +154,10 @@ class ScriptedParticipant:
         self._question_seen_t = math.nan
         self._question_right = True
         self._answered: str | None = None
+        self._still_since = math.nan  # [s] when it last started pushing without moving
+        self._still_at = (math.nan, math.nan, math.nan)  # pose then
+        self._backoff_until = -math.inf  # [s]
+        self._backoff_u = np.zeros(3)
         self.texts_read: list[str] = []
 
     # ------------------------------------------------------------ non-driving
@@ -250,6 +267,7 @@ class ScriptedParticipant:
         """Plan the trial's route (and inspection) on the scene's occupancy grid."""
         self._legs, self._leg, self._progress = [], 0, 0
         self._question, self._answered = None, None
+        self._still_since, self._backoff_until = math.nan, -math.inf
         self._drive = info.drive
         if not info.drive:
             return
@@ -327,7 +345,29 @@ class ScriptedParticipant:
                 self._leg += 1
                 self._progress = 0
                 self._swept, self._last_phi = 0.0, math.nan
+            u = self._unstick(obs.t, obs.pose, u)
         return ParticipantInput(u=u, answer=answer)
+
+    def _unstick(self, t: float, pose: Pose2D, u: np.ndarray) -> np.ndarray:
+        """Back away for ``backoff_s`` after pushing ``stuck_s`` without the robot moving
+        (as a person does when the robot will not go where the stick points)."""
+        s = self.settings
+        if t < self._backoff_until:
+            return self._backoff_u
+        x0, y0, yaw0 = self._still_at
+        moved = not (
+            math.hypot(pose.x - x0, pose.y - y0) < 0.02 and abs(_wrap(pose.yaw - yaw0)) < 0.03
+        )
+        if math.hypot(u[0], u[1]) < 0.05 or moved:
+            self._still_since, self._still_at = t, (pose.x, pose.y, pose.yaw)
+            return u
+        if t - self._still_since >= s.stuck_s:
+            back = -np.asarray(u[:2]) / math.hypot(u[0], u[1]) * 0.5 * s.speed
+            self._backoff_u = np.array([back[0], back[1], 0.0])
+            self._backoff_until = t + s.backoff_s
+            self._still_since, self._still_at = t + s.backoff_s, (pose.x, pose.y, pose.yaw)
+            return self._backoff_u
+        return u
 
     def _to_robot(self, pose: Pose2D, vx: float, vy: float, w: float) -> np.ndarray:
         c, s = math.cos(pose.yaw), math.sin(pose.yaw)
