@@ -50,7 +50,10 @@ Decisions where the spec is silent:
   overwritten), the path stored relative to the database's folder. Camera frames are logged
   at ``camera_hz`` (the caller's choice: the session engine uses 2 Hz for human
   participants and none for scripted and synthetic ones, whose sessions would otherwise
-  spend most of their time rendering).
+  spend most of their time rendering). A participant that already shows a camera image
+  (the human screen renders it off the control path) offers it through an optional
+  ``camera_image() -> array | None``; the loop then logs that image instead of rendering
+  one itself, so the recording costs no control time.
 - Collision starts are events with the element and map position; collision ends too.
 - Region entry and exit are events whenever the secondary task is active in the trial.
 """
@@ -452,6 +455,7 @@ def run_trial(
     footprint = scenario.robot.footprint()
     camera_every = max(1, round(1.0 / (DT * spec.camera_hz))) if spec.camera_hz > 0 else 0
     intention = getattr(participant, "intention", None)
+    shown_camera = getattr(participant, "camera_image", None)
     sec_events: list[SecondaryEvent] = []
     open_questions: dict[tuple[int, int], dict[str, Any]] = {}
     open_contacts: set[int] = set()
@@ -644,7 +648,9 @@ def run_trial(
                 true_target=target,
             )
             writer.samples.append(record.row(trial_id))
-            camera = world.camera_image() if camera_every and tick % camera_every == 0 else None
+            camera = None
+            if camera_every and tick % camera_every == 0:
+                camera = shown_camera() if shown_camera is not None else world.camera_image()
             recorder.tick(t, pose, obs.points, u, record.v, assist=out, camera=camera)
             if tick % FLUSH_EVERY_TICKS == 0:
                 writer.flush(tick)

@@ -335,7 +335,7 @@ def test_cli_refuses_human_input_and_bad_code(tmp_path):
         timeout=120,
     )
     assert done.returncode == 2
-    assert "not built yet" in done.stderr and len(done.stderr.strip().splitlines()) == 1
+    assert "--input human" in done.stderr and len(done.stderr.strip().splitlines()) == 1
     done = subprocess.run(
         base + ["--participant", "P/01"], capture_output=True, text=True, timeout=120
     )

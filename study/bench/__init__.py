@@ -20,6 +20,7 @@ GROUPS: dict[str, str] = {
     "sim": "study.bench.sim",
     "autonomy": "study.bench.autonomy",
     "report": "study.bench.report",
+    "ui": "study.bench.ui",
 }
 
 
