@@ -65,13 +65,17 @@ Speed. :func:`in_robot_frame` is called every control tick. The tuple returned
 by :func:`derive_components` carries every coordinate of every component
 stacked in one array, so a tick is a few vector operations plus slicing (about
 0.1 ms for the 58 components of ``cluttered_room``); the arrays it hands out are
-read-only views. Plain tuples are accepted too (stacked on the fly, slower).
+read-only views. Plain tuples are accepted too (stacked on the fly, slower). The
+world does not even do that unless asked: ``Observation.components`` is a
+:class:`RobotFrameComponents`, which calls :func:`in_robot_frame` when first read
+(decided here: most modes never read the components, and the tick budget of a
+synthetic study is about 1-2 ms).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -687,6 +691,7 @@ def in_robot_frame(
         Robot-frame components, same order; their arrays are read-only views of
         one array. Feed it to :func:`nearest_components`.
     """
+    components = _packed_or_plain(components)
     packed = components if isinstance(components, _Packed) else _pack(components)
     lay = packed.layout
     n = lay.n
@@ -720,6 +725,89 @@ def in_robot_frame(
     return result
 
 
+class RobotFrameComponents(Sequence[SemanticComponent]):
+    """Map-frame components seen from a pose, put into the robot frame on first use.
+
+    What ``World.sense`` hands out as ``Observation.components``: a read-only sequence
+    equal to ``in_robot_frame(components, pose)``, but only computed (once) when an
+    element is read or the sequence iterated. ``len`` does not compute it. Manual and
+    reactive modes never look at the components, and a tick then does not pay for
+    58 transformed components (about 0.1-0.2 ms).
+
+    Parameters
+    ----------
+    components : sequence of SemanticComponent
+        Components in the map frame (packed by :func:`derive_components` for speed).
+    pose : Pose2D
+        Robot pose in the map frame ([m], [m], [rad]).
+    """
+
+    __slots__ = ("_map", "_pose", "_seen")
+    __hash__ = None  # type: ignore[assignment]  # like a tuple of array-holding components
+
+    def __init__(self, components: Sequence[SemanticComponent], pose: Pose2D) -> None:
+        self._map = components
+        self._pose = pose
+        self._seen: tuple[SemanticComponent, ...] | None = None
+
+    @property
+    def pose(self) -> Pose2D:
+        """The pose the components are seen from."""
+        return self._pose
+
+    def materialise(self) -> tuple[SemanticComponent, ...]:
+        """The robot-frame components (computed on the first call)."""
+        if self._seen is None:
+            self._seen = in_robot_frame(self._map, self._pose)
+        return self._seen
+
+    def __len__(self) -> int:
+        return len(self._map)
+
+    def __getitem__(self, index):  # type: ignore[no-untyped-def]
+        return self.materialise()[index]
+
+    def __iter__(self) -> Iterator[SemanticComponent]:
+        return iter(self.materialise())
+
+    def __eq__(self, other: object) -> bool:
+        if isinstance(other, RobotFrameComponents):
+            other = other.materialise()
+        if not isinstance(other, tuple):
+            return NotImplemented
+        return self.materialise() == other
+
+    def __repr__(self) -> str:
+        state = "computed" if self._seen is not None else "not yet computed"
+        return f"RobotFrameComponents({len(self)} components seen from {self._pose}, {state})"
+
+
+def _packed_or_plain(components: Sequence[SemanticComponent]) -> Sequence[SemanticComponent]:
+    return components.materialise() if isinstance(components, RobotFrameComponents) else components
+
+
+def target_points(components: Sequence[SemanticComponent]) -> np.ndarray:
+    """Every component's intentional target point ``s`` (n, 2) [m], in their frame.
+
+    Equal to ``np.array([c.target_point() for c in components])`` (the same nearest
+    surface point, the first one on ties), in a few vector operations when the
+    components came from :func:`in_robot_frame` or ``World.sense``: about 3 times
+    faster for the 58 components (2,562 candidate points) of ``cluttered_room`` than
+    one call per component (50 vs 170 us).
+    """
+    components = _packed_or_plain(components)
+    if isinstance(components, _Packed) and components.layout.n:
+        lay = components.layout
+        candidates = components.stacked[lay.target_rows]  # (m, 2)
+        sq = np.einsum("ij,ij->i", candidates, candidates)
+        lowest = np.minimum.reduceat(sq, lay.target_starts)
+        counts = np.diff(np.append(lay.target_starts, len(sq)))
+        at_min = np.flatnonzero(sq == np.repeat(lowest, counts))
+        first = at_min[np.searchsorted(at_min, lay.target_starts)]  # first minimum per run
+        return candidates[first]
+    return np.array([c.target_point() for c in components], dtype=float).reshape(-1, 2)
+
+
 def target_distances(components: Sequence[SemanticComponent]) -> np.ndarray:
     """Distance from the frame's origin to each component's target point (n,) [m].
 
@@ -727,6 +815,7 @@ def target_distances(components: Sequence[SemanticComponent]) -> np.ndarray:
     intentional target point ``s`` (spec section 3): a passage's or dock's centre,
     an object's or wall's nearest surface point.
     """
+    components = _packed_or_plain(components)
     if isinstance(components, _Packed) and components.layout.n:
         lay = components.layout
         sq = np.einsum("ij,ij->i", components.stacked, components.stacked)
@@ -758,5 +847,6 @@ def nearest_components(
         raise ValueError(f"k: must be zero or positive, got {k}")
     if not len(components_robot_frame):
         return ()
+    components_robot_frame = _packed_or_plain(components_robot_frame)
     order = np.argsort(target_distances(components_robot_frame), kind="stable")[:k]
     return tuple(components_robot_frame[int(i)] for i in order)

@@ -13,6 +13,7 @@ units, ``(v_x [m/s], v_y [m/s], omega [rad/s])``, shape (3,).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -118,7 +119,9 @@ class Observation:
     scans: tuple[LaserScan, ...]
     points: np.ndarray  # (m, 2) [m] laser hits of all scanners in the robot frame
     imu: ImuReading
-    components: tuple[SemanticComponent, ...]  # semantic components in the robot frame
+    # semantic components in the robot frame: a tuple, or from World.sense a read-only
+    # sequence computed when first read (sim.semantics.RobotFrameComponents)
+    components: Sequence[SemanticComponent]
 
 
 @dataclass(frozen=True, slots=True)

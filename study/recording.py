@@ -42,10 +42,14 @@ Decisions where the spec is silent
   ``.rrd`` cut by a crash lacks its footer anyway, and a resumed trial is run
   again). Laser hits are kept at ``laser_hz`` (default 5 Hz: 540 points at
   20 Hz would make a 3-minute trial ~15 MB); the predicted path at ``path_hz``
-  (default 10 Hz), sent as one ``(rows, k, 2)`` array per path length (about
-  8x faster to convert than a list of paths); camera frames are logged
+  (default 10 Hz), sent in one ``send_columns``, as a ``(rows, k, 2)`` array
+  when all paths have ``k`` points (fastest to convert), else as the list of
+  paths (one send per path length, as before, cost ~10 ms per 5 s batch with the
+  contextual mode's paths of many lengths, ~0.1 ms per tick); camera frames are logged
   whenever the caller passes one (the caller decides the rate, e.g. 2 Hz) and
-  JPEG-compressed. The target highlight and text are logged as they happen.
+  JPEG-compressed. The target highlight is buffered too, one row per change of
+  (target, label), "no target" as an empty row (nothing highlighted); text is
+  logged as it happens.
   The wall-clock ``log_time`` timeline is disabled so a recording is a pure
   function of the simulated trial.
 - **Arrows.** ``u`` and ``v`` are drawn from the robot's centre with length
@@ -348,6 +352,7 @@ class TrialRecorder:
             (ENTITY.v, rr.Arrows2D.from_fields(colors=COLOURS["v"], radii=0.025)),
             (ENTITY.laser, rr.Points2D.from_fields(colors=COLOURS["laser"], radii=0.02)),
             (ENTITY.predicted_path, rr.LineStrips2D.from_fields(colors=COLOURS["path"])),
+            (ENTITY.target, rr.Points2D.from_fields(colors=COLOURS["target"], radii=0.08)),
         ):
             rec.log(entity, style, static=True)
         rec.log(
@@ -370,6 +375,9 @@ class TrialRecorder:
         self._path: list[np.ndarray] = []
         self._laser_t: list[float] = []
         self._laser: list[np.ndarray] = []
+        self._target_t: list[float] = []
+        self._target: list[np.ndarray] = []  # (k, 2) float32 map frame; (0, 2): none
+        self._target_labels: list[str] = []  # k per target, concatenated
 
     def tick(
         self,
@@ -444,25 +452,19 @@ class TrialRecorder:
         ).astype(np.float32)
 
     def _log_target(self, t: float, state: tuple[str, str]) -> None:
+        """Buffer a change of the highlighted target (sent with the next batch)."""
         self._target_state = state
         target, label = state
-        self._rec.set_time(TIMELINE, duration=t)
         component = self._components.get(target)
+        self._target_t.append(t)
         if component is None:
             # no target, or an id the scene does not know: nothing highlighted
-            self._rec.log(ENTITY.target, rr.Clear(recursive=False))
+            self._target.append(np.empty((0, 2), dtype=np.float32))
             return
-        pts = _component_points(component)
+        pts = _component_points(component).astype(np.float32)
         text = f"{target} ({label})" if label else target
-        self._rec.log(
-            ENTITY.target,
-            rr.Points2D(
-                pts,
-                radii=0.08,
-                colors=COLOURS["target"],
-                labels=[text] + [""] * (len(pts) - 1),
-            ),
-        )
+        self._target.append(pts)
+        self._target_labels += [text] + [""] * (len(pts) - 1)
 
     def _log_camera(self, t: float, frame: np.ndarray) -> None:
         image = rr.Image(np.asarray(frame))
@@ -508,17 +510,24 @@ class TrialRecorder:
                 indexes=[rr.TimeColumn(TIMELINE, duration=np.asarray(times_s))],
                 columns=rr.Scalars.columns(scalars=np.asarray(values)),
             )
-        # one send per path length: a (rows, k, 2) array converts ~8x faster than a list
-        by_length: dict[int, list[int]] = {}
-        for i, p in enumerate(self._path):
-            by_length.setdefault(len(p), []).append(i)
-        for rows in by_length.values():
+        if self._path:
+            # one send: a (rows, k, 2) array when every path has k points (the fastest to
+            # convert), else the list (one send per length cost ~10x more at 5 s batches)
+            same = len({len(p) for p in self._path}) == 1
             rec.send_columns(
                 ENTITY.predicted_path,
-                indexes=[
-                    rr.TimeColumn(TIMELINE, duration=np.asarray([self._path_t[i] for i in rows]))
-                ],
-                columns=rr.LineStrips2D.columns(strips=np.stack([self._path[i] for i in rows])),
+                indexes=[rr.TimeColumn(TIMELINE, duration=np.asarray(self._path_t))],
+                columns=rr.LineStrips2D.columns(
+                    strips=np.stack(self._path) if same else self._path
+                ),
+            )
+        if self._target:
+            rec.send_columns(
+                ENTITY.target,
+                indexes=[rr.TimeColumn(TIMELINE, duration=np.asarray(self._target_t))],
+                columns=rr.Points2D.columns(
+                    positions=np.concatenate(self._target), labels=self._target_labels
+                ).partition([len(p) for p in self._target]),
             )
         if self._laser:
             rec.send_columns(

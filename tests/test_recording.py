@@ -23,6 +23,7 @@ from study.cli import main
 from study.recording import (
     ANALYTICS_OFF_ENV,
     ENTITY,
+    TIMELINE,
     RecorderSettings,
     TrialRecorder,
     recording_id,
@@ -125,6 +126,72 @@ def test_recording_verifies_and_its_summary_matches_what_went_in(tmp_path, scene
     assert summary["time_range_s"] == pytest.approx([0.0, span_s], abs=1e-6)
     assert summary["timeline"] == "sim_time"
     assert summary["recording_id"] == str(recording_id("P01/main/0"))
+
+
+def _temporal_column(path, entity: str, column: str) -> tuple[list[float], list]:
+    """(times [s], values) of one column of ``entity``'s temporal rows, in time order."""
+    from rerun.chunk import RrdReader
+
+    rows = []
+    for chunk in RrdReader(path).stream().to_chunks():
+        if chunk.entity_path.lstrip("/") != entity or chunk.is_static or chunk.is_empty:
+            continue
+        batch = chunk.to_record_batch()
+        if column in batch.schema.names:
+            times = batch.column(TIMELINE).cast("int64").to_pylist()
+            rows += zip(times, batch.column(column).to_pylist(), strict=True)
+    rows.sort(key=lambda r: r[0])
+    return [t / 1e9 for t, _ in rows], [v for _, v in rows]
+
+
+def test_batched_targets_and_paths_hold_what_went_in(tmp_path, scene, rng):
+    scenario, components, grid = scene
+    ids = [c.id for c in components] + ["", "not_in_scene"]
+    path = tmp_path / "batched.rrd"
+    settings = dataclasses.replace(RecorderSettings(), flush_every_s=0.35, path_hz=20.0)
+    want_targets, want_paths = [], []
+    with TrialRecorder(
+        path, trial_key="b", scenario=scenario, components=components, grid=grid, settings=settings
+    ) as rec:
+        target = None
+        for i in range(60):
+            t = i * DT
+            if i == 0 or rng.random() < 0.3:
+                target = str(rng.choice(ids))
+            k = int(rng.choice([0, 3, 8, 8]))  # ragged paths, empty ones too
+            predicted = rng.normal(size=(k, 3))
+            assist = Assist(
+                v=np.zeros(3),
+                g=np.zeros(3),
+                beta=0.5,
+                label="FT",
+                target=target,
+                scores={},
+                predicted_path=predicted,
+                timings_ms={},
+            )
+            pose = Pose2D(*rng.normal(size=3))
+            if not want_targets or want_targets[-1][1] != target:
+                want_targets.append((t, target))
+            want_paths.append((t, TrialRecorder._path_in_map(pose, predicted)))
+            rec.tick(t, pose, None, np.zeros(3), np.zeros(3), assist=assist)
+    verify(path)
+    by_id = {c.id: c for c in components}
+    times, positions = _temporal_column(path, ENTITY.target, "Points2D:positions")
+    _, labels = _temporal_column(path, ENTITY.target, "Points2D:labels")
+    assert times == pytest.approx([t for t, _ in want_targets], abs=1e-9)
+    for (_, target), got, text in zip(want_targets, positions, labels, strict=True):
+        if target in by_id:  # highlighted: the component's points, labelled once
+            want = by_id[target].points if len(by_id[target].points) else [by_id[target].centre]
+            np.testing.assert_allclose(np.asarray(got), np.asarray(want)[: len(got)], atol=1e-6)
+            assert text[0] == f"{target} (FT)" and not any(text[1:])
+        else:  # nothing highlighted
+            assert got == [] and text == []
+    times, strips = _temporal_column(path, ENTITY.predicted_path, "LineStrips2D:strips")
+    assert times == pytest.approx([t for t, _ in want_paths], abs=1e-9)
+    for (_, want), got in zip(want_paths, strips, strict=True):
+        (strip,) = got
+        np.testing.assert_allclose(np.asarray(strip).reshape(-1, 2), want, atol=1e-5)
 
 
 def test_two_trials_in_one_process_stay_separate(tmp_path, scene, rng):

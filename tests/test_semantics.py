@@ -451,3 +451,48 @@ def test_every_shipped_scenario_derives_components(name):
     assert all(len(c.points) for c in of_kind(comps, "object", "wall"))
     robot = in_robot_frame(comps, s.start)
     assert len(nearest_components(robot, 10)) == min(10, len(comps))
+
+
+def test_lazy_robot_frame_components_equal_the_eager_ones(rng):
+    from sim.semantics import RobotFrameComponents
+
+    comps = derive_components(load_scenario("cluttered_room"))
+    for _ in range(5):
+        pose = Pose2D(*rng.uniform(0.0, 10.0, 2), float(rng.uniform(-math.pi, math.pi)))
+        eager = in_robot_frame(comps, pose)
+        lazy = RobotFrameComponents(comps, pose)
+        assert len(lazy) == len(eager) and bool(lazy)
+        assert "not yet computed" in repr(lazy)  # len and bool do not compute it
+        for got, want in zip(lazy, eager, strict=True):
+            assert (got.id, got.kind, got.source) == (want.id, want.kind, want.source)
+            for field in ("centre", "points", "ends", "normal"):
+                np.testing.assert_array_equal(getattr(got, field), getattr(want, field))
+            assert got.width == want.width or (math.isnan(got.width) and math.isnan(want.width))
+        assert lazy[0].id == eager[0].id and [c.id for c in lazy[-3:]] == [c.id for c in eager[-3:]]
+        assert lazy.materialise() is lazy.materialise()  # computed once
+        np.testing.assert_array_equal(target_distances(lazy), target_distances(eager))
+        k = int(rng.integers(0, 12))
+        assert [c.id for c in nearest_components(lazy, k)] == [
+            c.id for c in nearest_components(eager, k)
+        ]
+    empty = RobotFrameComponents((), Pose2D(0.0, 0.0, 0.0))
+    assert len(empty) == 0 and not empty and tuple(empty) == ()
+    assert empty == () and empty == RobotFrameComponents((), Pose2D(1.0, 0.0, 0.0))
+
+
+def test_target_points_equal_each_components_own(rng):
+    from sim.semantics import RobotFrameComponents, target_points
+
+    for name in available_scenarios():
+        comps = derive_components(load_scenario(name))
+        for _ in range(3):
+            pose = Pose2D(*rng.uniform(-1.0, 12.0, 2), float(rng.uniform(-math.pi, math.pi)))
+            seen = in_robot_frame(comps, pose)
+            want = np.array([c.target_point() for c in seen]).reshape(-1, 2)
+            # packed, lazy and plain: the same points, bit for bit (ties: the first)
+            for as_given in (seen, RobotFrameComponents(comps, pose), tuple(seen)):
+                np.testing.assert_array_equal(target_points(as_given), want)
+            np.testing.assert_allclose(
+                np.hypot(want[:, 0], want[:, 1]), target_distances(seen), rtol=1e-12
+            )
+    assert target_points(()).shape == (0, 2)

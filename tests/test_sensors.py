@@ -385,3 +385,35 @@ def test_camera_sees_the_red_cylinder() -> None:
             (rgb[..., 0] > 100) & (rgb[..., 0] > 2 * rgb[..., 1]) & (rgb[..., 0] > 2 * rgb[..., 2])
         )
         assert red.sum() == 0
+
+
+def test_sensing_at_rest_reuses_the_geometry_and_redraws_the_noise(rng) -> None:
+    scenario = with_laser_sigma(random_scene(rng), 0.01)
+    seed = int(rng.integers(1 << 31))
+    worlds = World(scenario, seed=seed, components=()), World(scenario, seed=seed, components=())
+    with worlds[0] as cached, worlds[1] as fresh:
+        start = Pose2D(4.0, 4.0, float(rng.uniform(-3, 3)))
+        for world in (cached, fresh):
+            world.reset(start)
+        before = None
+        for _ in range(4):
+            for world in (cached, fresh):
+                world.apply(np.zeros(3))
+                world.step()
+            fresh._ranges_key = None  # forget the cached cast: the same observation
+            a, b = cached.sense(), fresh.sense()
+            assert cached.true_pose() == fresh.true_pose()
+            for sa, sb in zip(a.scans, b.scans, strict=True):
+                assert np.array_equal(sa.ranges, sb.ranges)
+            assert np.array_equal(a.points, b.points)
+            if before is not None:  # at rest, but each tick draws its own noise
+                assert not np.array_equal(a.scans[0].ranges, before)
+            before = a.scans[0].ranges
+        # moved: the ranges are those of the new pose
+        pose = Pose2D(3.0, 5.0, float(rng.uniform(-3, 3)))
+        noise_free = World(with_laser_sigma(scenario, 0.0), seed=0, components=())
+        with noise_free:
+            noise_free.sense()
+            want = noise_free.reset(pose).scans[0].ranges
+        got = cached.reset(pose).scans[0].ranges
+        assert np.max(np.abs(got - want)) < 0.1

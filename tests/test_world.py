@@ -428,6 +428,24 @@ def test_worlds_in_one_process_do_not_interfere(rng: np.random.Generator) -> Non
         assert np.array_equal(got[0], expected[0]) and np.array_equal(got[1], expected[1])
 
 
+def test_only_the_robot_is_checked_for_contacts() -> None:
+    # the static scene's bodies never collide with each other (walls meet at corners):
+    # Bullet would compute those contacts at every substep for nothing
+    from sim._pybullet import pybullet as p
+    from sim.scenario import load_scenario
+
+    with World(load_scenario("cluttered_room"), seed=0, components=()) as world:
+        world.reset(Pose2D(world.scenario.start.x, world.scenario.start.y, 0.0))
+        world.apply(np.array([-1.0, 0.0, 0.0]))  # backwards, into the west wall
+        touched = False
+        for _ in range(60):
+            world.step()
+            touched = touched or world.touching
+            contacts = p.getContactPoints(physicsClientId=world.client)
+            assert all(world._robot in (c[1], c[2]) for c in contacts)
+        assert touched  # the robot itself still collides
+
+
 def test_close_is_idempotent() -> None:
     world = World(open_room(), seed=0, components=())
     client = world.client
@@ -457,3 +475,18 @@ def test_gui_world_steps() -> None:
         for _ in range(20):
             world.step()
         assert world.true_velocity()[0] > 0.4
+
+
+@pytest.mark.slow
+def test_trial_bench_group_reports_tick_times_per_mode() -> None:
+    from study.bench import trial as bench
+
+    figures = bench.run(quick=True)
+    for name in bench.MODES:
+        if name == "contextual_task" and f"trial_error_{name}" in figures:
+            continue  # its shipped model is being retrained: the others are still measured
+        tick = figures[f"trial_tick_ms_{name}"]
+        assert 0 < tick["p50"] <= tick["p95"]
+        assert tick["mean"] > 0 and figures[f"trial_tick_cpu_ms_{name}"] > 0
+        assert 0 <= figures[f"trial_mode_ms_{name}"] < tick["mean"]
+    assert figures["trial_tick_ms_mean"] > 0

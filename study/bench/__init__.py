@@ -21,6 +21,7 @@ GROUPS: dict[str, str] = {
     "autonomy": "study.bench.autonomy",
     "report": "study.bench.report",
     "ui": "study.bench.ui",
+    "trial": "study.bench.trial",
 }
 
 

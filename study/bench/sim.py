@@ -2,7 +2,8 @@
 
 ``sim_ticks_per_s`` is control ticks per second of wall time of one full tick as the
 trial loop runs it (``apply`` + ``step`` + ``sense`` with both laser scans, the pose
-estimate, the IMU and the semantic components; camera off), headless, in the
+estimate and the IMU; camera off; the semantic components are put into the robot frame
+only when a mode reads them, which this driver does not), headless, in the
 cluttered room (or a built-in scene if that is not shipped). A scripted driver
 (:func:`_wander`) steers from the last observation, so the robot roams the room,
 turns and strafes, and only now and then touches something
