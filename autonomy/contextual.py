@@ -56,12 +56,28 @@ Decisions where the spec is silent:
   between; ``s*``, ``q_est`` and the Mahalanobis stop are evaluated at every step. With 5
   EM iterations this keeps a 60-step rollout within the tick budget even when no local fit
   is cached (measured: see ``asa bench --only autonomy``).
+- Yielding. Blending by the confidence alone can deadlock: near an obstacle the predicted
+  path may lead into it, the safety layer stops the robot, and with ``beta`` near 1 the
+  user's command (say, a turn away) has no effect, tick after tick (seen with scripted
+  drivers at a gap of ``practice_course``). When the safety layer scales the blended
+  command below ``yield_below_scale`` and the user's own command is freer, the mode
+  yields for that tick: ``v`` = the user's safe command, ``beta`` = 0 (stored as such).
 - ``u*`` from the GMR is clipped to the normalised range [-1, 1] before it is integrated.
   The kinematics are integrated with the mid-step heading (second order).
 - If the rollout stops at its first step (the first ``q_est`` is already an outlier of the
   primitive), the path is empty and ``g = u``: nothing was predicted to assist with.
 - The Mahalanobis statistics live in the model's standardised encoded feature space
   (7 dims; :mod:`autonomy.training`).
+- No assistance without translational input: when ``|u_xy|`` in the normalised units is
+  below ``min_input`` (0.05, i.e. 5 % of full stick deflection; 0.025 m/s on the default
+  robot), the mode behaves as manual control (``beta = 0``, ``v = u`` through the safety
+  layer). There is then no input direction, so the task feature carries no intention
+  (the demonstrations keep only moving ticks, so the model never saw such inputs), and a
+  driver who lets go of the stick must not be moved by the assistance.
+- A recognition with no finite score (:func:`autonomy.sogp_classifier.argmax_finite`)
+  also falls back to manual control.
+- The local GMM's variance floor is relative to the primitive's data scale
+  (``1e-3 *`` the column variance of its GMR points, as :mod:`autonomy.gmr`).
 """
 
 from __future__ import annotations
@@ -78,9 +94,11 @@ from scipy.special import ndtr
 
 from autonomy.arbitration import blend
 from autonomy.features import encode, task_features
+from autonomy.gmr import data_scale
 from autonomy.model import DEFAULT_MODEL, GMR_INPUT, ContextualModel, load_model
 from autonomy.modes import register, settings_from
 from autonomy.safety import safe_command
+from autonomy.sogp_classifier import argmax_finite
 from autonomy.tracking import TrackingSettings, track
 from autonomy.types import EMPTY_PATH, Assist, RobotModel
 
@@ -96,18 +114,28 @@ class ContextualSettings:
     em_iters: int = 5  # EM iterations of the local 2-component GMM
     gmr_every: int = 4  # rollout steps per GMR evaluation (u* held in between; 5 Hz)
     mahalanobis_stop: float = 3.0  # Eq. (6.3) threshold (thesis Sec. 7.4.4)
+    min_input: float = 0.05  # |u_xy| (normalised) below which the mode does not assist
     dt: float = 0.05  # [s] rollout step (thesis Sec. 7.4.4)
     tracking: TrackingSettings = field(default_factory=TrackingSettings)
     safety_horizon_s: float = 1.0  # [s] the safety layer's horizon
+    # the assistance yields (beta = 0, v = the user's safe command) when the safety layer
+    # must scale the blended command below this and the user's own command is freer
+    yield_below_scale: float = 0.5
 
     def __post_init__(self) -> None:
+        ybs = self.yield_below_scale
+        if not (isinstance(ybs, int | float) and 0.0 <= ybs <= 1.0):
+            raise ValueError(
+                "contextual_task setting yield_below_scale: must be a number in [0, 1], got "
+                f"{self.yield_below_scale!r}"
+            )
         for name in ("candidates", "rollout_steps", "gmr_k", "em_iters", "gmr_every"):
             value = getattr(self, name)
             if not (isinstance(value, int) and value >= 1):
                 raise ValueError(
                     f"contextual_task setting {name}: must be an integer >= 1, got {value!r}"
                 )
-        for name in ("mahalanobis_stop", "dt", "safety_horizon_s"):
+        for name in ("mahalanobis_stop", "dt", "safety_horizon_s", "min_input"):
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
                 raise ValueError(
@@ -155,11 +183,12 @@ class Recogniser:
         Returns
         -------
         best_candidate : int
-            Row of ``Z`` with the largest posterior mean over all clusters (5.8).
+            Row of ``Z`` with the largest finite posterior mean over all clusters (5.8);
+            -1 if no mean is finite.
         best_cluster : int
-            Its cluster id.
+            Its cluster id (-1 if none).
         beta : float
-            ``Phi(mu / sqrt(var))`` of the winner (5.10).
+            ``Phi(mu / sqrt(var))`` of the winner (5.10); 0 if none.
         mean : numpy.ndarray
             (m, c) posterior means (5.6).
         """
@@ -173,18 +202,22 @@ class Recogniser:
             K = sf2 * np.exp(-0.5 * np.maximum(sq, 0.0))  # (b, m), Eq. (5.7)
             mean[:, j] = alpha @ K  # Eq. (5.6)
             kernels.append(K)
-        i, j = divmod(int(np.argmax(mean)), c)  # Eq. (5.8)
+        i, j = argmax_finite(mean)  # Eq. (5.8), never a non-finite score
+        if i < 0:
+            return -1, -1, 0.0, mean
         _, _, _, C, sf2, noise, _ = self.gps_[j]
         k = kernels[j][:, i]
         var = max(sf2 + float(k @ (C @ k)), 0.0) + noise  # Eq. (5.9), clamped
         beta = float(ndtr(mean[i, j] / math.sqrt(var)))  # Eq. (5.10)
+        if not math.isfinite(beta):
+            beta = 0.0
         return i, int(self.classes_[j]), beta, mean
 
 
 # --------------------------------------------------------------------------- local GMR
 
 
-def local_gmm(local: np.ndarray, *, iters: int, reg: float = 1e-6):
+def local_gmm(local: np.ndarray, *, iters: int, reg: float = 1e-3, scale: np.ndarray | None = None):
     """EM for 2 diagonal Gaussian components on a small local set, deterministic seeds.
 
     Parameters
@@ -194,7 +227,9 @@ def local_gmm(local: np.ndarray, *, iters: int, reg: float = 1e-6):
     iters : int
         EM iterations.
     reg : float
-        Added to every variance.
+        Variance floor relative to ``scale``: ``reg * scale`` is added to every variance.
+    scale : numpy.ndarray, optional
+        (D,) per-column scale; default :func:`autonomy.gmr.data_scale` of ``local``.
 
     Returns
     -------
@@ -202,14 +237,15 @@ def local_gmm(local: np.ndarray, *, iters: int, reg: float = 1e-6):
     coincide.
     """
     k = local.shape[0]
+    floor = reg * (data_scale(local) if scale is None else scale)
     centre = local.mean(axis=0)
     first = int(np.argmin(((local - centre) ** 2).sum(axis=1)))
     d2 = ((local - local[first]) ** 2).sum(axis=1)
     second = int(np.argmax(d2))
     if not d2[second] > 0:
-        return np.ones(1), centre[None, :], (local.var(axis=0) + reg)[None, :]
+        return np.ones(1), centre[None, :], (local.var(axis=0) + floor)[None, :]
     mu = local[[first, second]].copy()
-    var = np.tile(local.var(axis=0) + reg, (2, 1))
+    var = np.tile(local.var(axis=0) + floor, (2, 1))
     log_w = np.full(2, -math.log(2.0))
     sq = local * local
     for _ in range(iters):
@@ -223,7 +259,7 @@ def local_gmm(local: np.ndarray, *, iters: int, reg: float = 1e-6):
         nk = r.sum(axis=0) + 1e-12  # M step
         log_w = np.log(nk / k)
         mu = (r.T @ local) / nk[:, None]
-        var = np.maximum((r.T @ sq) / nk[:, None] - mu * mu, 0.0) + reg
+        var = np.maximum((r.T @ sq) / nk[:, None] - mu * mu, 0.0) + floor
     w = np.exp(log_w)
     return w, mu, var
 
@@ -245,6 +281,7 @@ class LocalGMR:
 
     def __init__(self, points: np.ndarray, *, k: int, iters: int, cache_size: int = 50000):
         self.points_ = np.asarray(points, dtype=float)
+        self.scale_ = data_scale(self.points_)  # for the relative variance floor
         self.tree_ = cKDTree(self.points_[:, list(GMR_INPUT)])
         self.k = min(int(k), len(self.points_))
         self.iters = int(iters)
@@ -258,7 +295,7 @@ class LocalGMR:
         key = idx.tobytes()
         fit = self.cache_.get(key)
         if fit is None:
-            w, mu, var = local_gmm(self.points_[idx], iters=self.iters)  # Alg. 2: EM
+            w, mu, var = local_gmm(self.points_[idx], iters=self.iters, scale=self.scale_)
             fit = (np.log(w), mu[:, :2], var[:, :2], mu[:, 2:])
             if len(self.cache_) >= self.cache_size:
                 self.cache_.clear()
@@ -375,12 +412,14 @@ def rollout(
         if step % every == 0:
             u = np.clip(gmr.predict(np.array([sx, sy])), -1.0, 1.0)  # line 10
             ux, uy, uw = float(u[0]), float(u[1]), float(u[2])
-        # line 11: q_est = (s*, theta*, u*), theta as in autonomy.features.task_features
-        if math.hypot(ux, uy) >= 1e-6 and math.hypot(sx, sy) >= 1e-9:
+        # line 11: q_est = (s*, theta*, u*), encoded as autonomy.features.encode does:
+        # |u_xy| (cos theta, sin theta), (0, 0) without translational input
+        speed = math.hypot(ux, uy)
+        if speed >= 1e-6 and math.hypot(sx, sy) >= 1e-9:
             theta = math.atan2(uy, ux) - math.atan2(sy, sx)
-            ct, st = math.cos(theta), math.sin(theta)
+            ct, st = speed * math.cos(theta), speed * math.sin(theta)
         else:
-            ct, st = 1.0, 0.0
+            ct, st = speed, 0.0
         z[:] = (sx, sy, ct, st, ux, uy, uw)
         e = W @ ((z - smean) / sscale - mean)
         d = math.sqrt(float(e @ e))  # line 12, Eq. (6.3)
@@ -478,7 +517,9 @@ class ContextualTaskMode:
         u = np.array(u, dtype=float).reshape(3)
         points = np.asarray(obs.points, dtype=float).reshape(-1, 2)
         components = tuple(getattr(obs, "components", ()) or ())
-        if rt is None or not components:
+        limit = np.array([robot.max_speed, robot.max_speed, robot.max_yaw_rate])
+        u_norm = u / limit
+        if rt is None or not components or math.hypot(u_norm[0], u_norm[1]) < s.min_input:
             return self._manual(u, points, start, time.perf_counter())
 
         # 1. candidates: the nearest components by target point
@@ -486,12 +527,13 @@ class ContextualTaskMode:
         order = np.argsort(np.einsum("ij,ij->i", targets, targets), kind="stable")
         chosen = order[: s.candidates]
         # 2. q* per candidate, encoded and standardised
-        limit = np.array([robot.max_speed, robot.max_speed, robot.max_yaw_rate])
-        q = task_features(targets[chosen], u / limit)
+        q = task_features(targets[chosen], u_norm)
         Z = rt.model.scaler.transform(encode(q))
         # 3. recognition, Eqs. (5.6), (5.8), (5.10)
         i, cluster, beta, mean = rt.recogniser(Z)
         t_rec = time.perf_counter()
+        if i < 0:  # no finite score: nothing recognised
+            return self._manual(u, points, start, t_rec)
         component = components[int(chosen[i])]
         # 4. rollout, Alg. 3
         path, _ = rollout(rt, cluster, component, robot, s)
@@ -510,7 +552,12 @@ class ContextualTaskMode:
         # 6. blend (3.2) and the safety layer
         v = blend(u, g, beta)  # Eq. (3.2)
         t_track = time.perf_counter()
-        v, _ = safe_command(v, points, robot, horizon_s=s.safety_horizon_s)
+        v, scale = safe_command(v, points, robot, horizon_s=s.safety_horizon_s)
+        if beta > 0.0 and scale < s.yield_below_scale:
+            # blocked assistance must not hold the robot against the user's will
+            v_user, scale_user = safe_command(u, points, robot, horizon_s=s.safety_horizon_s)
+            if scale_user > scale:
+                v, beta = v_user, 0.0
         end = time.perf_counter()
         best = mean.max(axis=1)
         scores = {str(components[int(k)].id): float(best[n]) for n, k in enumerate(chosen)}

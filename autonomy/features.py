@@ -5,8 +5,10 @@ point ``s`` of one candidate semantic component (robot frame, metres) with the u
 command ``u = (v_x, v_y, omega)`` (each channel normalised to (-1, 1), Sec. 5.1) and the
 angle ``theta`` between the translational input ``u_xy = (v_x, v_y)`` and the vector
 ``r_s`` from the robot centre to ``s`` (Sec. 6.1). For learning, the angle is encoded as
-``(cos theta, sin theta)`` so that +-pi are neighbours (issue 3), and every column is
-standardised with a :class:`FeatureScaler` learnt on the training data.
+``|u_xy| (cos theta, sin theta)`` -- the translational input expressed in a frame whose
+x axis points at the target -- so that +-pi are neighbours (issue 3) and the encoding is
+continuous, with the defined value ``(0, 0)`` when there is no translational input; every
+column is then standardised with a :class:`FeatureScaler` learnt on the training data.
 
 Decisions where the thesis is silent:
 
@@ -19,6 +21,13 @@ Decisions where the thesis is silent:
   direction, and ``theta`` is defined as 0 ("not pointing away from the target"); likewise
   when the robot centre sits on the target (``|s| < min_distance``). The velocities in
   ``q`` still tell the learner that the robot is not translating.
+- Encoding (:func:`encode`): ``(cos theta, sin theta)`` alone would jump between
+  arbitrary directions as ``|u_xy|`` passes through zero (and take the made-up value
+  ``(1, 0)`` at zero). Scaled by ``|u_xy|`` (normalised units) the pair is the input's
+  component towards the target and across it: continuous in ``u``, ``(0, 0)`` for no
+  translational input, whatever ``theta`` was set to. The contextual mode does not assist
+  at (near) zero input anyway (``autonomy.contextual``), and the demonstrations keep only
+  moving ticks.
 - The scaler divides by the population standard deviation (ddof 0); a column that is
   constant in the training data keeps scale 1 so that it is centred but never blown up.
 """
@@ -30,7 +39,15 @@ from typing import Any
 import numpy as np
 
 FEATURE_NAMES: tuple[str, ...] = ("s_x", "s_y", "theta", "v_x", "v_y", "omega")
-ENCODED_NAMES: tuple[str, ...] = ("s_x", "s_y", "cos_theta", "sin_theta", "v_x", "v_y", "omega")
+ENCODED_NAMES: tuple[str, ...] = (
+    "s_x",
+    "s_y",
+    "speed_cos_theta",
+    "speed_sin_theta",
+    "v_x",
+    "v_y",
+    "omega",
+)
 
 
 def wrap_angle(a: np.ndarray | float) -> np.ndarray:
@@ -96,7 +113,7 @@ def task_features(
 
 
 def encode(q: np.ndarray) -> np.ndarray:
-    """The learning representation of task features: the angle as (cos, sin).
+    """The learning representation of task features: the angle as ``|u_xy| (cos, sin)``.
 
     Parameters
     ----------
@@ -106,8 +123,9 @@ def encode(q: np.ndarray) -> np.ndarray:
     Returns
     -------
     numpy.ndarray
-        (m, 7) ``(s_x, s_y, cos theta, sin theta, v_x, v_y, omega)``, or (7,) for a
-        single feature.
+        (m, 7) ``(s_x, s_y, |u_xy| cos theta, |u_xy| sin theta, v_x, v_y, omega)`` with
+        ``|u_xy| = hypot(v_x, v_y)`` (normalised units), or (7,) for a single feature;
+        ``(0, 0)`` in columns 2-3 when ``|u_xy| = 0``.
     """
     q = np.asarray(q, dtype=float)
     single = q.ndim == 1
@@ -116,8 +134,9 @@ def encode(q: np.ndarray) -> np.ndarray:
         raise ValueError(f"q: expected shape (m, 6) {FEATURE_NAMES}, got {q.shape}")
     out = np.empty((q2.shape[0], 7))
     out[:, 0:2] = q2[:, 0:2]
-    out[:, 2] = np.cos(q2[:, 2])
-    out[:, 3] = np.sin(q2[:, 2])
+    speed = np.hypot(q2[:, 3], q2[:, 4])
+    out[:, 2] = speed * np.cos(q2[:, 2])
+    out[:, 3] = speed * np.sin(q2[:, 2])
     out[:, 4:7] = q2[:, 3:6]
     return out[0] if single else out
 

@@ -21,13 +21,20 @@ Decisions where the thesis is silent:
   full covariances.
 - :func:`em_diagonal` seeds the means k-means++ style (first centre uniformly at random,
   the next with probability proportional to the squared distance to the nearest centre),
-  starts every variance at the data's variance plus ``reg``, adds ``reg`` to every
+  starts every variance at the data's variance plus the floor, adds the floor to every
   variance at each M step (as scikit-learn's ``reg_covar``), and stops after ``iters``
   iterations or when the mean log-likelihood per point improves by less than ``tol``
   (default 1e-3, scikit-learn's ``GaussianMixture`` default; on 10 points this is a
   handful of iterations, which keeps one prediction at a few hundred microseconds). It fits
   ``min(n_components, number of distinct points)`` components, so one point, or ``k``
-  copies of one point, give a single component (variance ``reg``) instead of failing.
+  copies of one point, give a single component (variance = the floor) instead of failing.
+- The variance floor is *relative to the data's scale*: ``reg * scale`` per column, with
+  ``scale`` the column variance (:func:`data_scale`; for :class:`FastOnlineGMR` that of
+  the whole cluster, so that ten near-identical neighbours cannot collapse a component),
+  and ``reg = 1e-3`` (a floor of 3 % of a column's standard deviation). An absolute floor
+  (1e-6 before) meant different models in metres and in millimetres, and a vanishing
+  floor for columns that repeat in the neighbours (held stick values). The result is
+  equivariant to rescaling a column (tested).
 - :class:`FastOnlineGMR` uses ``min(k, N)`` neighbours; the k-d tree distance is Euclidean
   in the input columns as given, so the caller chooses their units (metres for the
   target point ``s*`` of Alg. 3).
@@ -151,8 +158,9 @@ def em_diagonal(
     n_components: int = 2,
     rng: np.random.Generator,
     iters: int = 50,
-    reg: float = 1e-6,
+    reg: float = 1e-3,
     tol: float = 1e-3,
+    scale: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """EM for a Gaussian mixture with diagonal covariances (Alg. 1-2, line "EM").
 
@@ -167,10 +175,13 @@ def em_diagonal(
     iters : int
         Maximum EM iterations.
     reg : float
-        Added to every variance (squared data units).
+        Variance floor relative to ``scale``: ``reg * scale`` is added to every variance.
     tol : float
         Stop when the mean log-likelihood per point improves by less than this
         (scikit-learn's ``GaussianMixture`` default).
+    scale : numpy.ndarray, optional
+        (D,) positive per-column scale [squared data units]; default
+        :func:`data_scale` of ``X``.
 
     Returns
     -------
@@ -179,7 +190,7 @@ def em_diagonal(
     means : numpy.ndarray
         (K, D) component means.
     variances : numpy.ndarray
-        (K, D) diagonal variances, each >= reg.
+        (K, D) diagonal variances, each >= ``reg * scale``.
     """
     X = np.asarray(X, dtype=float)
     if X.ndim != 2 or X.shape[0] < 1:
@@ -187,13 +198,14 @@ def em_diagonal(
     if n_components < 1:
         raise ValueError(f"em_diagonal: n_components must be >= 1, got {n_components}")
     k, D = X.shape
+    floor = reg * (data_scale(X) if scale is None else np.asarray(scale, dtype=float))
     means = _kmeanspp(X, n_components, rng)
     K = means.shape[0]
-    var0 = X.var(axis=0) + reg
+    var0 = X.var(axis=0) + floor
     variances = np.tile(var0, (K, 1))
     weights = np.full(K, 1.0 / K)
     if K == 1:
-        return np.ones(1), X.mean(axis=0, keepdims=True), (X.var(axis=0) + reg)[None, :]
+        return np.ones(1), X.mean(axis=0, keepdims=True), var0[None, :]
     X2 = X * X
     const = D * _LOG_2PI
     previous = -np.inf
@@ -213,12 +225,24 @@ def em_diagonal(
         nk = resp.sum(axis=0) + 10.0 * np.finfo(float).eps
         weights = nk / k
         means = (resp.T @ X) / nk[:, None]
-        variances = np.maximum((resp.T @ X2) / nk[:, None] - means * means, 0.0) + reg
+        variances = np.maximum((resp.T @ X2) / nk[:, None] - means * means, 0.0) + floor
         current = float(np.mean(top) + np.mean(np.log(total)))  # mean log-likelihood
         if current - previous < tol:
             break
         previous = current
     return weights, means, variances
+
+
+def data_scale(X: np.ndarray) -> np.ndarray:
+    """Per-column scale of ``X`` (k, D) for a relative variance floor, (D,) > 0.
+
+    The column variance; where it is 0 (to rounding: below 1e-12 of the mean square), the
+    column's mean square; where that is 0 too, 1.
+    """
+    X = np.atleast_2d(np.asarray(X, dtype=float))
+    var = X.var(axis=0)
+    ms = (X * X).mean(axis=0)
+    return np.where(var > 1e-12 * ms, var, np.where(ms > 0, ms, 1.0))
 
 
 def _kmeanspp(X: np.ndarray, n_components: int, rng: np.random.Generator) -> np.ndarray:
@@ -285,6 +309,7 @@ class FastOnlineGMR:
         self.k = int(k)
         self.n_components = int(n_components)
         self.data_ = data[:, np.concatenate([ii, oo])].copy()  # (N, i + o), inputs first
+        self.scale_ = data_scale(self.data_)  # the cluster's scale, for the variance floor
         self.tree_ = cKDTree(data[:, ii])
 
     def predict(self, x: np.ndarray, *, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
@@ -311,7 +336,9 @@ class FastOnlineGMR:
         kk = min(self.k, self.data_.shape[0])
         _, idx = self.tree_.query(x, k=kk)  # Alg. 2: nearest neighbours
         local = self.data_[np.atleast_1d(idx)]
-        w, mu, var = em_diagonal(local, n_components=self.n_components, rng=rng)  # Alg. 2: EM
+        w, mu, var = em_diagonal(  # Alg. 2: EM
+            local, n_components=self.n_components, rng=rng, scale=self.scale_
+        )
         o = self.out_idx.size
         mean, cov = gmr(w, mu, var, x[None, :], np.arange(i), np.arange(i, i + o))  # Eq. (4.5)
         return mean[0], cov[0]

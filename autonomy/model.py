@@ -35,8 +35,11 @@ Decisions where the spec is silent:
 - Archives are written with fixed zip timestamps and entries in sorted order, so the
   same model gives the same bytes except for the creation date in the metadata.
 - Validation on load: not a zip/npz, a missing entry, a wrong shape or non-finite
-  values, unreadable metadata, or a format version newer than :data:`FORMAT_VERSION` all
-  raise ``ValueError`` naming the file and the field.
+  values, unreadable metadata, or a format version other than :data:`FORMAT_VERSION` all
+  raise ``ValueError`` naming the file and the field. Version 1 files encoded the angle
+  as plain ``(cos, sin)`` (``autonomy.features.encode`` now scales it by ``|u_xy|``), so
+  their scaler and GPs would be fed features from another space: they are refused with
+  a request to retrain rather than silently misread.
 """
 
 from __future__ import annotations
@@ -56,7 +59,7 @@ from autonomy.features import ENCODED_NAMES, FeatureScaler
 from autonomy.sogp import se_ard_kernel
 from autonomy.sogp_classifier import SOGPClassifier
 
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2  # 2: angle encoded as |u_xy| (cos, sin); capacity 250
 DIM = len(ENCODED_NAMES)  # 7: s_x, s_y, cos theta, sin theta, v_x, v_y, omega
 GMR_COLUMNS = ("s_x", "s_y", "v_x", "v_y", "omega")  # input s* [m], output u* (normalised)
 GMR_INPUT = (0, 1)
@@ -81,7 +84,7 @@ _GP_SCALARS = (
     "recondition_every",
     "n_updates",
 )
-_CLASSIFIER_SCALARS = ("capacity", "hyper_points", "restarts")
+_CLASSIFIER_SCALARS = ("capacity", "hyper_points", "restarts", "max_length_scale")
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -282,6 +285,12 @@ def model_from_arrays(arrays: dict[str, np.ndarray], *, where: str = "model") ->
         raise ValueError(
             f"{where}: field 'metadata.format_version': {version} is newer than this platform "
             f"reads ({FORMAT_VERSION}); upgrade asa-study or retrain the model"
+        )
+    if version < FORMAT_VERSION:
+        raise ValueError(
+            f"{where}: field 'metadata.format_version': {version} is an older feature "
+            f"encoding than this platform reads ({FORMAT_VERSION}); retrain the model with "
+            f"`asa train` (see autonomy/models/README.md)"
         )
     ids = _entry(arrays, "cluster_ids", where)
     if ids.ndim != 1 or ids.size < 1:

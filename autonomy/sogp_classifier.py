@@ -30,6 +30,13 @@ Decisions where the thesis is silent:
 - :func:`recognise` returns the winning cluster as its id (an element of ``classes_``), not
   its column index.
 - Inputs are used as given; the caller standardises them (``autonomy.features``).
+- :func:`recognise` never picks a non-finite score (NaN compares false, and an ``inf``
+  would win every argmax): non-finite entries are ignored, and when no candidate and
+  cluster has a finite score there is no recognition: candidate and cluster ``-1``,
+  ``beta = 0`` (the mode then does not assist). A non-finite variance of the winner also
+  gives ``beta = 0``.
+- ``max_length_scale`` bounds the GPs' length scales in standard deviations of the
+  (standardised) inputs; see :mod:`autonomy.sogp` for why it is short (0.5).
 """
 
 from __future__ import annotations
@@ -39,7 +46,7 @@ from typing import Any
 import numpy as np
 from scipy.special import ndtr
 
-from autonomy.sogp import SparseOnlineGP, fit_hyperparameters
+from autonomy.sogp import MAX_LENGTH_SCALE, SparseOnlineGP, fit_hyperparameters
 
 
 class SOGPClassifier:
@@ -54,6 +61,8 @@ class SOGPClassifier:
     restarts : int
         L-BFGS-B runs per class for the hyperparameters (see
         :func:`autonomy.sogp.fit_hyperparameters`).
+    max_length_scale : float
+        Upper bound of the length scales, in standard deviations of the inputs.
 
     Attributes
     ----------
@@ -66,10 +75,18 @@ class SOGPClassifier:
     classes_: np.ndarray
     models_: list[SparseOnlineGP]
 
-    def __init__(self, *, capacity: int = 500, hyper_points: int = 600, restarts: int = 3) -> None:
+    def __init__(
+        self,
+        *,
+        capacity: int = 500,
+        hyper_points: int = 600,
+        restarts: int = 3,
+        max_length_scale: float = MAX_LENGTH_SCALE,
+    ) -> None:
         self.capacity = int(capacity)
         self.hyper_points = int(hyper_points)
         self.restarts = int(restarts)
+        self.max_length_scale = float(max_length_scale)
 
     def fit(self, X: np.ndarray, labels: np.ndarray, *, rng: np.random.Generator) -> SOGPClassifier:
         """Learn one GP per cluster on targets +1 (own cluster) / -1 (others).
@@ -104,7 +121,12 @@ class SOGPClassifier:
         for c in self.classes_:
             t = np.where(labels == c, 1.0, -1.0)  # one-vs-all targets, Eq. (5.1)
             ls, sf2, sn2 = fit_hyperparameters(
-                X[sub], t[sub], rng=rng, max_points=self.hyper_points, restarts=self.restarts
+                X[sub],
+                t[sub],
+                rng=rng,
+                max_points=self.hyper_points,
+                restarts=self.restarts,
+                max_length_scale=self.max_length_scale,
             )
             gp = SparseOnlineGP(
                 capacity=self.capacity, length_scales=ls, signal_var=sf2, noise_var=sn2
@@ -171,6 +193,7 @@ class SOGPClassifier:
             "capacity": self.capacity,
             "hyper_points": self.hyper_points,
             "restarts": self.restarts,
+            "max_length_scale": self.max_length_scale,
             "classes": self.classes_.copy(),
             "models": [gp.to_dict() for gp in self.models_],
         }
@@ -193,6 +216,7 @@ class SOGPClassifier:
             capacity=int(d["capacity"]),
             hyper_points=int(d["hyper_points"]),
             restarts=int(d["restarts"]),
+            max_length_scale=float(d.get("max_length_scale", MAX_LENGTH_SCALE)),
         )
         out.classes_ = classes.copy()
         out.models_ = [SparseOnlineGP.from_dict(m) for m in models]
@@ -294,11 +318,13 @@ def recognise(classifier: SOGPClassifier, Q: np.ndarray) -> tuple[int, int, floa
     Returns
     -------
     best_candidate : int
-        Row of ``Q`` with the largest posterior mean over all clusters (5.8).
+        Row of ``Q`` with the largest finite posterior mean over all clusters (5.8); -1
+        when no score is finite (no recognition).
     best_cluster : int
-        The winning cluster id (an element of ``classifier.classes_``).
+        The winning cluster id (an element of ``classifier.classes_``); -1 when none.
     beta : float
-        The winner's confidence ``Phi(mu / sigma)`` (5.10), the arbitration factor.
+        The winner's confidence ``Phi(mu / sigma)`` (5.10), the arbitration factor; 0
+        when there is no recognition.
     scores : numpy.ndarray
         (m, c) posterior means of every candidate and cluster (columns follow
         ``classifier.classes_``).
@@ -307,9 +333,23 @@ def recognise(classifier: SOGPClassifier, Q: np.ndarray) -> tuple[int, int, floa
     if Q.shape[0] < 1:
         raise ValueError("Q: need at least one candidate")
     scores = classifier.scores(Q)
-    flat = int(np.argmax(scores))  # Eq. (5.8) over clusters and candidates
-    i, j = divmod(flat, scores.shape[1])
+    i, j = argmax_finite(scores)  # Eq. (5.8) over clusters and candidates
+    if i < 0:
+        return -1, -1, 0.0, scores
     # Only the winner's variance is needed (one O(b^2) product instead of m * c).
     mean, var = classifier.models_[j].predict(Q[i])
     beta = float(ndtr(mean[0] / np.sqrt(var[0])))  # Eq. (5.10)
+    if not np.isfinite(beta):
+        beta = 0.0
     return i, int(classifier.classes_[j]), beta, scores
+
+
+def argmax_finite(scores: np.ndarray) -> tuple[int, int]:
+    """Row and column of the largest finite entry of ``scores`` (m, c); (-1, -1) if none."""
+    scores = np.asarray(scores, dtype=float)
+    finite = np.isfinite(scores)
+    if not finite.any():
+        return -1, -1
+    flat = int(np.argmax(np.where(finite, scores, -np.inf)))
+    i, j = divmod(flat, scores.shape[1])
+    return i, j

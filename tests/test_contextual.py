@@ -160,7 +160,7 @@ def test_local_gmr_regression_equals_gmr_of_its_local_mixture(rng):
         x = rng.uniform(-2, 2, 2)
         log_w, mu_x, var_x, mu_y = local.fit_local(x)
         _, idx = local.tree_.query(x, k=10)
-        w, mu, var = local_gmm(data[np.sort(idx)], iters=5)
+        w, mu, var = local_gmm(data[np.sort(idx)], iters=5, scale=local.scale_)
         expected, _ = gmr(w, mu, var, x[None, :], [0, 1], [2, 3, 4])
         np.testing.assert_allclose(local.predict(x), expected[0], atol=1e-10)
         np.testing.assert_allclose(np.exp(log_w).sum(), 1.0)
@@ -229,3 +229,64 @@ def test_tracking_follows_straight_turning_and_rotating_paths():
     fast = np.column_stack((3.0 * t, np.zeros_like(t), np.zeros_like(t)))
     assert math.hypot(*track(fast, dt, max_speed=1.0, max_yaw_rate=1.2)[:2]) == pytest.approx(1)
     np.testing.assert_array_equal(track(np.zeros((0, 3)), dt, max_speed=1, max_yaw_rate=1), 0)
+
+
+@pytest.mark.parametrize("u_xy", [(0.0, 0.0), (0.01, -0.01)])
+def test_no_assistance_without_translational_input(mode, u_xy):
+    # A pure rotation or a released stick: no input direction, so no intention to assist.
+    obs = empty_observation([doorway("d", (1.5, 0.2)), wall("w", -1.0)])
+    for w in (0.0, 0.4, -0.9):
+        u = np.array([*u_xy, w])
+        assert math.hypot(*u_xy) / ROBOT.max_speed < mode.settings.min_input
+        assist = mode.step(obs, u)
+        assert assist.beta == 0.0 and assist.target == "" and assist.label == ""
+        np.testing.assert_array_equal(assist.v, u)
+    # just above the threshold the mode recognises again
+    moving = mode.step(obs, np.array([0.3 * ROBOT.max_speed, 0.0, 0.0]))
+    assert moving.target != ""
+
+
+def test_non_finite_scores_never_win(model, rng):
+    from autonomy.contextual import Recogniser
+    from autonomy.sogp_classifier import argmax_finite
+
+    Z = rng.normal(size=(5, 7))
+    scores = model.classifier.scores(Z)
+    for bad in (np.nan, np.inf):
+        poisoned = scores.copy()
+        poisoned[2, 0] = bad
+        i, j = argmax_finite(poisoned)
+        assert (i, j) != (2, 0) and np.isfinite(poisoned[i, j])
+        assert poisoned[i, j] == np.nanmax(np.where(np.isinf(poisoned), np.nan, poisoned))
+    assert argmax_finite(np.full((3, 2), np.nan)) == (-1, -1)
+    # a GP with non-finite coefficients: its cluster is never chosen, and with every GP
+    # broken there is no recognition (beta 0) in both recognisers
+    broken = {**model.sogp, "models": [dict(gp) for gp in model.sogp["models"]]}
+    broken["models"][0]["alpha"] = np.full_like(broken["models"][0]["alpha"], np.nan)
+    i, cluster, beta, _ = Recogniser(broken)(Z)
+    assert cluster != int(model.cluster_ids[0]) and 0.0 <= beta <= 1.0
+    for gp in broken["models"]:
+        gp["alpha"] = np.full_like(gp["alpha"], np.nan)
+    assert Recogniser(broken)(Z)[:3] == (-1, -1, 0.0)
+    clf = model.classifier
+    saved = [gp._alpha.copy() for gp in clf.models_]
+    try:
+        for gp in clf.models_:
+            gp._alpha[:] = np.nan
+        assert recognise(clf, Z)[:3] == (-1, -1, 0.0)
+    finally:
+        for gp, a in zip(clf.models_, saved, strict=True):
+            gp._alpha[:] = a
+    # the mode falls back to manual control
+    m = ContextualTaskMode(ContextualSettings(model_path=""), model=model)
+    m.reset(ROBOT)
+    m.runtime_ = m.runtime_.__class__(
+        **{
+            **{f: getattr(m.runtime_, f) for f in m.runtime_.__slots__},
+            "recogniser": Recogniser(broken),
+        }
+    )
+    u = np.array([0.3, 0.1, 0.0])
+    assist = m.step(empty_observation([doorway("d", (1.5, 0.2))]), u)
+    assert assist.beta == 0.0 and assist.target == ""
+    np.testing.assert_array_equal(assist.v, u)

@@ -77,12 +77,13 @@ def test_vectorised_equals_per_candidate_loop(rng):
         np.testing.assert_array_equal(q, loop)
 
 
-def test_encode_keeps_unit_circle_and_other_columns(rng):
+def test_encode_scales_the_angle_by_the_speed_and_keeps_other_columns(rng):
     targets = rng.normal(size=(30, 2))
-    q = task_features(targets, rng.uniform(-1, 1, size=3))
+    u = rng.uniform(-1, 1, size=3)
+    q = task_features(targets, u)
     z = encode(q)
     assert z.shape == (30, 7)
-    np.testing.assert_allclose(np.hypot(z[:, 2], z[:, 3]), 1.0, atol=1e-12)
+    np.testing.assert_allclose(np.hypot(z[:, 2], z[:, 3]), np.hypot(u[0], u[1]), atol=1e-12)
     np.testing.assert_allclose(np.arctan2(z[:, 3], z[:, 2]), q[:, 2], atol=1e-12)
     np.testing.assert_array_equal(z[:, :2], q[:, :2])
     np.testing.assert_array_equal(z[:, 4:], q[:, 3:])
@@ -120,3 +121,16 @@ def test_scaler_rejects_bad_input_and_files():
         FeatureScaler.from_dict({"mean": np.zeros(2), "scale": np.array([1.0, 0.0])})
     with pytest.raises(RuntimeError):
         FeatureScaler().transform(np.zeros((1, 2)))
+
+
+def test_encoded_angle_is_defined_and_continuous_at_zero_translational_input(rng):
+    targets = rng.normal(scale=2.0, size=(12, 2))
+    w = rng.uniform(-1, 1)
+    z0 = encode(task_features(targets, np.array([0.0, 0.0, w])))
+    np.testing.assert_array_equal(z0[:, 2:4], 0.0)  # (0, 0): no input direction
+    assert np.all(np.isfinite(z0))
+    # Approaching zero input from any direction tends to the same encoding.
+    for _ in range(5):
+        a = rng.uniform(-np.pi, np.pi)
+        tiny = 1e-7 * np.array([np.cos(a), np.sin(a), 0.0]) + np.array([0.0, 0.0, w])
+        np.testing.assert_allclose(encode(task_features(targets, tiny)), z0, atol=1e-6)

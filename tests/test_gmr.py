@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from autonomy.gmr import FastOnlineGMR, em_diagonal, gmr
+from autonomy.gmr import FastOnlineGMR, data_scale, em_diagonal, gmr
 
 
 def _random_spd(rng, D):
@@ -109,11 +109,11 @@ def test_em_is_robust_to_tiny_and_degenerate_data(rng):
         w, mu, var = em_diagonal(X, n_components=2, rng=rng, reg=1e-6)
         assert w.shape == (1,) and w[0] == 1.0
         np.testing.assert_allclose(mu[0], X[0])
-        np.testing.assert_allclose(var[0], 1e-6)
+        np.testing.assert_allclose(var[0], 1e-6 * X[0] ** 2)  # relative floor: mean square
     # Two distinct points, requested three components: at most two.
     X = np.array([[0.0, 0.0], [1.0, 1.0], [0.0, 0.0]])
     w, mu, var = em_diagonal(X, n_components=3, rng=rng)
-    assert w.size <= 2 and np.all(np.isfinite(mu)) and np.all(var >= 1e-6)
+    assert w.size <= 2 and np.all(np.isfinite(mu)) and np.all(var >= 1e-3 * X.var(axis=0))
     with pytest.raises(ValueError):
         em_diagonal(np.zeros((0, 2)), rng=rng)
 
@@ -162,3 +162,29 @@ def test_fast_online_gmr_rejects_bad_settings():
         FastOnlineGMR(data, in_idx=[0], out_idx=[1]).predict(
             np.zeros(2), rng=np.random.default_rng(0)
         )
+
+
+def test_em_and_fast_gmr_are_equivariant_to_rescaling_the_data(seed):
+    # The variance floor is relative: metres or millimetres give the same model (an
+    # absolute floor of 1e-6 would dominate the variances of the data scaled by 1e-3).
+    rng = np.random.default_rng(seed)
+    X = rng.uniform(0.0, 6.0, size=(400, 2))
+    data = np.c_[X, np.sin(X[:, 0]) + 0.05 * rng.normal(size=400)]
+    data[::7, 2] = 0.25  # repeated output values, as from a held stick
+    for factor in (1e-3, 1e3):
+        w, mu, var = em_diagonal(data[:10], rng=np.random.default_rng(seed))
+        w2, mu2, var2 = em_diagonal(data[:10] * factor, rng=np.random.default_rng(seed))
+        np.testing.assert_allclose(w2, w, rtol=1e-6, atol=1e-9)
+        np.testing.assert_allclose(mu2, mu * factor, rtol=1e-6, atol=1e-9 * factor)
+        np.testing.assert_allclose(var2, var * factor**2, rtol=1e-6)
+        a = FastOnlineGMR(data, in_idx=[0, 1], out_idx=[2], k=10)
+        b = FastOnlineGMR(data * factor, in_idx=[0, 1], out_idx=[2], k=10)
+        for q in rng.uniform(0.5, 5.5, size=(5, 2)):
+            m1, c1 = a.predict(q, rng=np.random.default_rng(seed))
+            m2, c2 = b.predict(q * factor, rng=np.random.default_rng(seed))
+            np.testing.assert_allclose(m2, m1 * factor, rtol=1e-6, atol=1e-9 * factor)
+            np.testing.assert_allclose(c2, c1 * factor**2, rtol=1e-6)
+    # k copies of one point: the floor is relative to the cluster's scale
+    dup = np.tile(data[:1], (10, 1))
+    _, _, var = em_diagonal(dup, rng=rng, reg=1e-3, scale=data_scale(data))
+    np.testing.assert_allclose(var[0], 1e-3 * data.var(axis=0))

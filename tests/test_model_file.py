@@ -143,3 +143,22 @@ def test_the_shipped_model_loads_and_is_small():
     assert model.n_clusters >= 2
     assert DEFAULT_MODEL.stat().st_size < 12e6
     assert model.metadata["data_sha256"]
+
+
+def test_an_older_feature_encoding_is_refused(model, tmp_path):
+    # Version 1 encoded the angle as plain (cos, sin): its scaler and GPs live in another
+    # feature space, so such a file must be retrained, not silently misread.
+    arrays = model_arrays(model)
+    meta = json.loads(str(arrays["metadata"]))
+    meta["format_version"] = 1
+    arrays["metadata"] = np.array(json.dumps(meta))
+    path = _write(tmp_path / "old.npz", arrays)
+    with pytest.raises(ValueError, match=r"old\.npz: field 'metadata.format_version'.*retrain"):
+        load_model(path)
+
+
+def test_the_shipped_model_is_small_and_current():
+    assert DEFAULT_MODEL.stat().st_size < 5_000_000  # was 8.1 MB at capacity 500
+    shipped = load_model()
+    assert shipped.metadata["format_version"] == FORMAT_VERSION
+    assert all(gp["basis"].shape[0] <= 250 for gp in shipped.sogp["models"])

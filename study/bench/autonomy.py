@@ -324,7 +324,7 @@ def _contextual_figures(observations: list, robot: RobotModel, n: int) -> dict:
             extra = _synthetic_components(rng, CONTEXTUAL_CANDIDATES - len(comps))
             obs = dataclasses.replace(obs, components=comps + extra)
         prepared.append((obs, u))
-    tick, roll = [], []
+    tick, roll, assisted = [], [], 0
     repeats = max(1, n // len(prepared))
     for k in range(repeats * len(prepared)):
         obs, u = prepared[k % len(prepared)]
@@ -332,11 +332,13 @@ def _contextual_figures(observations: list, robot: RobotModel, n: int) -> dict:
         assist = mode.step(obs, u)
         tick.append((time.perf_counter() - start) * 1e3)
         roll.append(assist.timings_ms["rollout"])
+        assisted += assist.target != ""  # below min_input the mode does not recognise
     return {
         "contextual_tick_ms": {
             **_percentiles(tick, (50, 95, 99)),
             "candidates": CONTEXTUAL_CANDIDATES,
         },
         "rollout_ms": _percentiles(roll, (50, 95)),
+        "contextual_recognised_share": round(assisted / max(len(tick), 1), 3),
         "contextual_model": which,
     }

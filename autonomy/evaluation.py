@@ -1,0 +1,658 @@
+"""Offline evaluation of contextual-task recognition on held-out demonstrations (thesis
+Sec. 7.2.2, 7.3, 7.4; spec sections 3 and 5; issue 3, "Offline evaluation").
+
+:func:`evaluate` takes demonstrations (duck-typed: the fields of
+``study.demonstrations.Demonstrations``) and reports
+
+- **task classification** (Sec. 7.3.1, Tables 7.2-7.6): cross-validation *by run* (a run's
+  ticks are never split between training and test) of the SOGP classifier (Ch. 5) against
+  scikit-learn's SVM (RBF kernel), k-nearest neighbours and random forest, each
+  grid-searched with an inner cross-validation by run (``StratifiedGroupKFold``: runs
+  kept whole, task types balanced) on the training fold. All four see the same encoded,
+  standardised features (``autonomy.features``; the scaler is learnt on the training
+  fold) and the same labels. At test time every
+  candidate component of a tick yields a feature; the classifier's best score over
+  candidates x classes (Eq. 5.8) gives the task type *and* the target, and a
+  classification is correct only when both are right (Sec. 7.3.1). F0.5 per task type and
+  macro, and the confusion matrix;
+- **introspection** (Sec. 7.3.2, 7.4.3, Table 7.9): for each of the 6 pairs of the four
+  demonstrated task types, train on the pair and query with the features (against the
+  demonstrated target) of the other two; the mean normalised entropy (Eq. 7.7) of the
+  two-class distribution, per classifier;
+- **trajectory rates** (Sec. 7.2.2): success, error and null rates along each held-out
+  run of the SOGP recogniser, the recursive Bayesian filter (Ch. 4) and the
+  exponential-confidence baseline (Eq. 7.5), averaged over runs.
+
+Decisions where the thesis and the spec are silent:
+
+- Labels. Table 7.6 scores the Chapter-5 classifier, which is trained on the task types
+  (Sec. 7.3: "the classifiers are trained" on the four task types; Table 7.2's rows and
+  columns are the task types), so the labels here are the *true task types*, for every
+  classifier. The DP-GMM clusters of ``asa train`` are not used: they mix task types (see
+  ``asa train``'s summary), and a per-cluster F0.5 would not be comparable with Table 7.6.
+- Folds. The runs of each task type are shuffled (the ``seed``) and dealt round-robin to
+  the folds, so that every fold holds every task type when it has at least ``folds``
+  runs (a stratified ``GroupKFold``); ``folds`` must lie in [2, number of runs]
+  (ValueError otherwise).
+- Ticks. Training uses way points, every ``stride``-th moving tick of a run (4: the 5 Hz
+  of the thesis's demonstrations, Sec. 7.3 footnote 11); classification is scored on every
+  ``test_stride``-th tick (2) of the held-out runs; the trajectory rates on every tick
+  (the Bayes filter is recursive).
+- Candidates: all components the demonstration recorded at the tick, sorted by distance,
+  so ties between candidates (frequent for the probability outputs of KNN and RF) go to
+  the nearest. The target must be the demonstrated component's id.
+- Scores. SOGP: posterior means (Eq. 5.6, the score of Eq. 5.8); SVM: the one-vs-rest
+  decision function; KNN and RF: class probabilities. A non-finite score never wins.
+- F0.5 (Eq. 7.6) per task type c counts, with "right" meaning right task type and right
+  target: ``tp`` right predictions of c; ``fp`` predictions of c that are not right (also
+  the right type at a wrong target); ``fn`` ticks of true type c not predicted right.
+  Macro = unweighted mean over the task types. The confusion matrix has rows = true type,
+  columns = predicted type at the right target, plus a column ``wrong_target``.
+- Inner grid search scored by macro F0.5 of the plain classification against the
+  demonstrated target (the candidate search is the outer evaluation's). Grids (small, to
+  keep the run short): SVM ``C`` in {1, 10, 100} x ``gamma`` in {"scale", 1.0}; KNN
+  ``n_neighbors`` in {5, 15, 45} x ``weights`` in {uniform, distance}; RF (60 trees)
+  ``max_depth`` in {None, 12} x ``min_samples_leaf`` in {1, 5}. The SOGP has no grid: its
+  hyperparameters maximise the evidence (Sec. 7.3.1), with the platform's length-scale cap.
+- Introspection probabilities: SOGP, the normalised confidences (5.10,
+  ``SOGPClassifier.predict_proba``); SVM, Platt scaling (``CalibratedClassifierCV(...,
+  method="sigmoid", ensemble=False)``, what ``SVC(probability=True)`` did) with the grid's
+  best parameters on the pair; KNN and RF, ``predict_proba``. Pairs are named
+  ``"<type>+<type>"`` (the training pair); ``"mean"`` is the mean over the six.
+- SOGP recogniser along a run: the fold's SOGP classifier with Eq. (5.8) over the tick's
+  candidates (as the contextual mode recognises); the decision is null when the winner's
+  confidence (5.10) is below 0.5, i.e. its posterior mean is negative (no class claims the
+  feature). The Bayes filter's user models (BIC, Eq. 4.11) are fitted on every tick of
+  the training fold's runs per task type; the baseline uses its default scales.
+- Speed: ~1 min on the 48-run demonstration set on one core (``asa evaluate`` prints the
+  time). Randomness: one ``numpy.random.Generator`` from ``seed`` draws the folds, the
+  SOGP subsamples and update orders, the user models' seeds and the forests' seeds.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from sklearn.calibration import CalibratedClassifierCV
+from sklearn.ensemble import RandomForestClassifier
+from sklearn.metrics import fbeta_score
+from sklearn.model_selection import GridSearchCV, StratifiedGroupKFold
+from sklearn.neighbors import KNeighborsClassifier
+from sklearn.svm import SVC
+
+from autonomy.baseline_recogniser import ExponentialBaseline
+from autonomy.bayes_filter import BayesFilterRecogniser, fit_user_models, target_features
+from autonomy.features import FeatureScaler, encode, wrap_angle
+from autonomy.recognition_metrics import trajectory_rates
+from autonomy.sogp import MAX_LENGTH_SCALE
+from autonomy.sogp_classifier import SOGPClassifier, argmax_finite, normalised_entropy
+
+METHODS: tuple[str, ...] = ("sogp", "svm", "knn", "rf")
+RECOGNISERS: tuple[str, ...] = ("sogp", "bayes_filter", "baseline")
+WRONG_TARGET = "wrong_target"
+
+
+@dataclass(frozen=True, slots=True)
+class EvaluationSettings:
+    """Settings of :func:`evaluate` (values: see the module docstring)."""
+
+    folds: int = 5
+    seed: int = 0
+    stride: int = 4  # training way points: every 4th moving tick (5 Hz)
+    test_stride: int = 2  # classification scored on every 2nd held-out tick
+    capacity: int = 250  # SOGP basis vectors per class
+    hyper_points: int = 300  # class-balanced subsample for the GP evidence
+    hyper_restarts: int = 1
+    max_length_scale: float = MAX_LENGTH_SCALE
+    inner_folds: int = 3  # grid search: StratifiedGroupKFold by run in the training fold
+    rf_trees: int = 60
+
+    def __post_init__(self) -> None:
+        for name in (
+            "stride",
+            "test_stride",
+            "capacity",
+            "hyper_points",
+            "hyper_restarts",
+            "rf_trees",
+        ):
+            value = getattr(self, name)
+            if not (isinstance(value, int) and value >= 1):
+                raise ValueError(f"evaluation setting {name}: must be an integer >= 1")
+        if not (isinstance(self.folds, int) and self.folds >= 2):
+            raise ValueError(f"--folds: must be an integer >= 2, got {self.folds!r}")
+        if not (isinstance(self.inner_folds, int) and self.inner_folds >= 2):
+            raise ValueError("evaluation setting inner_folds: must be an integer >= 2")
+
+
+# --------------------------------------------------------------------------- features
+
+
+def candidate_features(
+    points: np.ndarray, offsets: np.ndarray, u_norm: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Task features (Sec. 6.1) of every candidate of every tick, vectorised.
+
+    Equals ``autonomy.features.task_features(points[a:b], u_norm[i])`` tick by tick.
+
+    Parameters
+    ----------
+    points : numpy.ndarray
+        (m, 2) candidate target points [m], robot frame, ticks' candidates contiguous.
+    offsets : numpy.ndarray
+        (n + 1,) tick ``i``'s candidates are rows ``offsets[i]:offsets[i + 1]``.
+    u_norm : numpy.ndarray
+        (n, 3) commands in normalised (-1, 1) units.
+
+    Returns
+    -------
+    q : numpy.ndarray
+        (m, 6) ``(s_x, s_y, theta, v_x, v_y, omega)``.
+    tick : numpy.ndarray
+        (m,) the tick of every row.
+    """
+    counts = np.diff(offsets)
+    tick = np.repeat(np.arange(len(counts)), counts)
+    u = u_norm[tick]
+    speed = np.hypot(u[:, 0], u[:, 1])
+    dist = np.hypot(points[:, 0], points[:, 1])
+    theta = wrap_angle(np.arctan2(u[:, 1], u[:, 0]) - np.arctan2(points[:, 1], points[:, 0]))
+    q = np.empty((len(points), 6))
+    q[:, 0:2] = points
+    q[:, 2] = np.where((speed >= 1e-6) & (dist >= 1e-9), theta, 0.0)
+    q[:, 3:6] = u
+    return q, tick
+
+
+def way_points_of(run: np.ndarray, stride: int) -> np.ndarray:
+    """Rows that are every ``stride``-th tick of their run (from its first), sorted."""
+    run = np.asarray(run)
+    n = len(run)
+    starts = np.concatenate(([True], run[1:] != run[:-1])) if n else np.zeros(0, dtype=bool)
+    first = np.maximum.accumulate(np.where(starts, np.arange(n), 0))
+    return np.flatnonzero((np.arange(n) - first) % stride == 0)
+
+
+def run_folds(run_task: Sequence[str], folds: int, rng: np.random.Generator) -> np.ndarray:
+    """Fold of every run: each task type's runs shuffled and dealt round-robin.
+
+    Parameters
+    ----------
+    run_task : sequence of str
+        (r,) task type of every run.
+    folds : int
+        Number of folds, 2 <= folds <= r.
+    rng : numpy.random.Generator
+
+    Returns
+    -------
+    numpy.ndarray
+        (r,) fold index 0..folds-1 of every run; every fold is non-empty.
+    """
+    run_task = np.asarray(run_task)
+    fold = np.empty(len(run_task), dtype=int)
+    k = 0
+    for task in sorted(set(run_task.tolist())):
+        idx = np.flatnonzero(run_task == task)
+        for j in rng.permutation(idx):
+            fold[j] = k % folds
+            k += 1
+    return fold
+
+
+# --------------------------------------------------------------------------- metrics
+
+
+def f05_with_targets(
+    true_task: Sequence[str],
+    pred_task: Sequence[str | None],
+    target_ok: Sequence[bool],
+    labels: Sequence[str],
+    *,
+    beta: float = 0.5,
+) -> dict[str, float]:
+    """F_beta (Eq. 7.6) per task type where "right" needs the right type and target.
+
+    Parameters
+    ----------
+    true_task, pred_task : sequence
+        (n,) true and predicted task types (None: no prediction).
+    target_ok : sequence of bool
+        (n,) whether the predicted target is the demonstrated one.
+    labels : sequence of str
+        Task types to score.
+
+    Returns
+    -------
+    dict
+        Task type -> F_beta in [0, 1], and ``"macro"``: their mean.
+    """
+    t = np.asarray(true_task, dtype=object)
+    p = np.asarray(pred_task, dtype=object)
+    ok = np.asarray(target_ok, dtype=bool)
+    b2 = beta * beta
+    out: dict[str, float] = {}
+    for c in labels:
+        right = (p == c) & (t == c) & ok
+        tp = int(right.sum())
+        fp = int(((p == c) & ~right).sum())
+        fn = int(((t == c) & ~right).sum())
+        denom = (1.0 + b2) * tp + b2 * fn + fp
+        out[c] = (1.0 + b2) * tp / denom if tp > 0 else 0.0  # Eq. (7.6)
+    out["macro"] = float(np.mean([out[c] for c in labels])) if labels else 0.0
+    return out
+
+
+def confusion_with_targets(
+    true_task: Sequence[str],
+    pred_task: Sequence[str | None],
+    target_ok: Sequence[bool],
+    labels: Sequence[str],
+) -> list[list[int]]:
+    """Rows = true type; columns = predicted type at the right target, then
+    ``wrong_target`` (any type at a wrong target, or no prediction); (k, k + 1) counts."""
+    index = {c: i for i, c in enumerate(labels)}
+    m = np.zeros((len(labels), len(labels) + 1), dtype=int)
+    for t, p, ok in zip(true_task, pred_task, target_ok, strict=True):
+        i = index.get(t)
+        if i is None:
+            continue
+        j = index.get(p) if (ok and p is not None) else None
+        m[i, len(labels) if j is None else j] += 1
+    return m.tolist()
+
+
+# --------------------------------------------------------------------------- classifiers
+
+
+def _scorer(n_classes: int):
+    """Macro F0.5 over all ``n_classes`` labels (0..c-1), also on an inner split that
+    lacks some of them (scikit-learn's string scorer then guesses a binary problem)."""
+    labels = list(range(n_classes))
+
+    def score(estimator: Any, X: np.ndarray, y: np.ndarray) -> float:
+        return float(
+            fbeta_score(
+                y, estimator.predict(X), beta=0.5, average="macro", labels=labels, zero_division=0
+            )
+        )
+
+    return score
+
+
+def _grid(method: str, settings: EvaluationSettings, seed: int):
+    if method == "svm":
+        return SVC(kernel="rbf"), {"C": [1.0, 10.0, 100.0], "gamma": ["scale", 1.0]}
+    if method == "knn":
+        return KNeighborsClassifier(), {
+            "n_neighbors": [5, 15, 45],
+            "weights": ["uniform", "distance"],
+        }
+    if method == "rf":
+        rf = RandomForestClassifier(n_estimators=settings.rf_trees, random_state=seed, n_jobs=1)
+        return rf, {"max_depth": [None, 12], "min_samples_leaf": [1, 5]}
+    raise ValueError(f"unknown method {method!r}")
+
+
+class _Fitted:
+    """A fitted classifier with a uniform interface: ``scores`` (candidates x classes)
+    for Eq. (5.8)-style recognition and ``proba`` for the introspection."""
+
+    def __init__(self, method: str, model: Any, classes: np.ndarray) -> None:
+        self.method = method
+        self.model = model
+        self.classes = classes
+
+    def scores(self, Z: np.ndarray) -> np.ndarray:
+        if self.method == "sogp":
+            return self.model.scores(Z)  # Eq. (5.6)
+        if self.method == "svm":
+            d = self.model.decision_function(Z)
+            return np.column_stack((-d, d)) if d.ndim == 1 else d  # binary: one column
+        return self.model.predict_proba(Z)
+
+    def proba(self, Z: np.ndarray) -> np.ndarray:
+        return self.model.predict_proba(Z)
+
+
+def fit_method(
+    method: str,
+    Z: np.ndarray,
+    y: np.ndarray,
+    groups: np.ndarray,
+    *,
+    settings: EvaluationSettings,
+    rng: np.random.Generator,
+    probability: bool = False,
+) -> _Fitted:
+    """Fit one classifier on standardised features ``Z`` (n, 7), integer labels ``y`` (n,).
+
+    The baselines are grid-searched with ``StratifiedGroupKFold`` by ``groups`` (runs);
+    the SOGP's hyperparameters maximise the evidence. ``probability`` makes the SVM Platt-scaled.
+    """
+    classes, y = np.unique(y, return_inverse=True)  # 0..c-1 for scikit-learn's scorers
+    if method == "sogp":
+        clf = SOGPClassifier(
+            capacity=settings.capacity,
+            hyper_points=settings.hyper_points,
+            restarts=settings.hyper_restarts,
+            max_length_scale=settings.max_length_scale,
+        ).fit(Z, y, rng=rng)
+        return _Fitted(method, clf, classes[clf.classes_])
+    seed = int(rng.integers(2**31 - 1))
+    estimator, grid = _grid(method, settings, seed)
+    n_groups = len(np.unique(groups))
+    cv = StratifiedGroupKFold(n_splits=min(settings.inner_folds, max(n_groups, 2)))
+    if method == "knn" and n_groups >= 2:  # no more neighbours than a training split holds
+        smallest = min(len(tr) for tr, _ in cv.split(Z, y, groups=groups))
+        grid["n_neighbors"] = [k for k in grid["n_neighbors"] if k <= smallest] or [1]
+    if n_groups >= 2:
+        search = GridSearchCV(
+            estimator,
+            grid,
+            scoring=_scorer(len(classes)),
+            cv=cv,
+            refit=False,
+            n_jobs=1,
+        )
+        search.fit(Z, y, groups=groups)
+        params = search.best_params_
+    else:
+        params = {}
+    final = estimator.set_params(**params)
+    if method == "svm" and probability:
+        # Platt scaling, as SVC(probability=True) (deprecated in scikit-learn 1.9)
+        final = CalibratedClassifierCV(final, method="sigmoid", cv=3, ensemble=False)
+    final.fit(Z, y)
+    return _Fitted(method, final, classes[final.classes_])
+
+
+def _decide(scores: np.ndarray, offsets: np.ndarray, ticks: np.ndarray):
+    """Per tick: (winning candidate row, winning class column) over its candidates."""
+    rows = np.empty(len(ticks), dtype=int)
+    cols = np.empty(len(ticks), dtype=int)
+    for n, i in enumerate(ticks):
+        a, b = int(offsets[i]), int(offsets[i + 1])
+        r, c = argmax_finite(scores[a:b]) if b > a else (-1, -1)
+        rows[n] = a + r if r >= 0 else -1
+        cols[n] = c
+    return rows, cols
+
+
+# --------------------------------------------------------------------------- evaluation
+
+
+def _sorted_candidates(demos: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Candidates of every tick sorted by distance (stable): points, ids, kinds, offsets."""
+    off = np.asarray(demos.cand_offsets, dtype=np.int64)
+    pts = np.asarray(demos.cand_points, dtype=float)
+    ids = np.asarray(demos.cand_ids).astype(str)
+    kinds = np.asarray(demos.cand_kinds).astype(str)
+    counts = np.diff(off)
+    tick = np.repeat(np.arange(len(counts)), counts)
+    order = np.lexsort((np.hypot(pts[:, 0], pts[:, 1]), tick))
+    return pts[order], ids[order], kinds[order], off
+
+
+def check_demonstrations(demos: Any, where: str) -> None:
+    """ValueError naming ``where`` if the demonstrations cannot be evaluated."""
+    n = len(np.asarray(demos.q))
+    if n == 0:
+        raise ValueError(f"{where}: no moving ticks in these demonstrations")
+    tasks = sorted(set(np.asarray(demos.task).astype(str).tolist()))
+    if len(tasks) < 2:
+        raise ValueError(
+            f"{where}: need demonstrations of at least 2 task types to evaluate, got {tasks}"
+        )
+
+
+def evaluate(
+    demos: Any,
+    *,
+    kinds: Mapping[str, str],
+    settings: EvaluationSettings | None = None,
+    model: str = "",
+    where: str = "demonstrations",
+) -> dict[str, Any]:
+    """Cross-validated recognition quality on demonstrations (see the module docstring).
+
+    Parameters
+    ----------
+    demos : Demonstrations-like
+        ``q`` (n, 6), ``u_norm`` (n, 3), ``run`` (n,), ``task`` (n,), ``target`` (n,),
+        ``cand_offsets`` (n + 1,), ``cand_points`` (m, 2), ``cand_ids`` (m,),
+        ``cand_kinds`` (m,): moving ticks, runs contiguous.
+    kinds : mapping of str to str
+        Task type -> the component kind it targets (``tasks.contextual.TARGET_KIND``).
+    settings : EvaluationSettings, optional
+    model : str
+        The model file the caller names (reported only; the evaluation trains its own).
+    where : str
+        Names the demonstrations in error messages.
+
+    Returns
+    -------
+    dict
+        ``f05``, ``confusion``, ``introspection_entropy``, ``trajectory_rates``,
+        ``n_runs``, ``folds``, ``seed``, ``model``, ``labels``, ``timings_s``.
+    """
+    settings = EvaluationSettings() if settings is None else settings
+    check_demonstrations(demos, where)
+    t_start = time.perf_counter()
+    rng = np.random.default_rng(settings.seed)
+    run = np.asarray(demos.run)
+    task = np.asarray(demos.task).astype(str)
+    target = np.asarray(demos.target).astype(str)
+    u_norm = np.asarray(demos.u_norm, dtype=float)
+    labels = sorted(set(task.tolist()))
+    label_index = {c: i for i, c in enumerate(labels)}
+    y_all = np.array([label_index[t] for t in task])
+    run_ids = np.unique(run)
+    if settings.folds > len(run_ids):
+        raise ValueError(
+            f"--folds: must be between 2 and the number of runs ({len(run_ids)}), got "
+            f"{settings.folds}"
+        )
+    run_task = [task[run == r][0] for r in run_ids]
+    fold_of_run = dict(zip(run_ids.tolist(), run_folds(run_task, settings.folds, rng), strict=True))
+    fold = np.array([fold_of_run[r] for r in run.tolist()])
+
+    pts, ids, ckinds, off = _sorted_candidates(demos)
+    q_cand, _ = candidate_features(pts, off, u_norm)
+    X_cand = encode(q_cand)
+    X_true = encode(np.asarray(demos.q, dtype=float))
+    wp = way_points_of(run, settings.stride)
+    test_ticks = way_points_of(run, settings.test_stride)
+
+    pred: dict[str, list] = {m: [] for m in METHODS}
+    ok: dict[str, list] = {m: [] for m in METHODS}
+    truth: list[str] = []
+    rec_rates: dict[str, list[dict[str, float]]] = {r: [] for r in RECOGNISERS}
+    t_cls = t_rec = 0.0
+    for k in range(settings.folds):
+        t0 = time.perf_counter()
+        train_rows = wp[fold[wp] != k]
+        scaler = FeatureScaler().fit(X_true[train_rows])
+        Ztr = scaler.transform(X_true[train_rows])
+        ytr, gtr = y_all[train_rows], run[train_rows]
+        Zc = scaler.transform(X_cand)
+        ticks = test_ticks[fold[test_ticks] == k]
+        truth.extend(task[ticks].tolist())
+        fitted: dict[str, _Fitted] = {}
+        for method in METHODS:
+            f = fitted[method] = fit_method(method, Ztr, ytr, gtr, settings=settings, rng=rng)
+            rows_needed = np.concatenate([np.arange(off[i], off[i + 1]) for i in ticks])
+            S = np.full((len(X_cand), len(f.classes)), np.nan)
+            S[rows_needed] = f.scores(Zc[rows_needed])
+            rows, cols = _decide(S, off, ticks)
+            for i, r, c in zip(ticks, rows, cols, strict=True):
+                if r < 0:
+                    pred[method].append(None)
+                    ok[method].append(False)
+                else:
+                    pred[method].append(labels[int(f.classes[c])])
+                    ok[method].append(bool(ids[r] == target[i]))
+        t1 = time.perf_counter()
+        t_cls += t1 - t0
+        # trajectory rates on every tick of the held-out runs
+        sogp = fitted["sogp"]
+        train_ticks = np.flatnonzero(fold != k)  # every tick: the user models need points
+        feats = {
+            c: target_features(
+                np.asarray(demos.s, dtype=float)[train_ticks[task[train_ticks] == c]],
+                u_norm[train_ticks[task[train_ticks] == c]],
+            )
+            for c in labels
+        }
+        user = fit_user_models(feats, rng=rng)
+        filt = BayesFilterRecogniser(user, {c: kinds[c] for c in labels})
+        base = ExponentialBaseline({c: kinds[c] for c in labels})
+        for r in np.unique(run[fold == k]):
+            ticks_r = np.flatnonzero(run == r)
+            truth_r = [(task[i], target[i]) for i in ticks_r]
+            rows_r = np.concatenate([np.arange(off[i], off[i + 1]) for i in ticks_r])
+            S = np.full((len(X_cand), len(sogp.classes)), np.nan)
+            S[rows_r] = sogp.scores(Zc[rows_r])
+            rows, cols = _decide(S, off, ticks_r)
+            dec_sogp: list[tuple[str, str] | None] = []
+            for rr, c in zip(rows, cols, strict=True):
+                if rr < 0:
+                    dec_sogp.append(None)
+                    continue
+                _, var = sogp.model.models_[c].predict(Zc[rr])
+                conf = 0.5 * math.erfc(-S[rr, c] / math.sqrt(2.0 * var[0]))  # Eq. (5.10)
+                dec_sogp.append((labels[int(sogp.classes[c])], ids[rr]) if conf >= 0.5 else None)
+            filt.reset()
+            base.reset()
+            dec_f, dec_b = [], []
+            for i in ticks_r:
+                a, b = int(off[i]), int(off[i + 1])
+                cands = [(ids[j], ckinds[j], pts[j]) for j in range(a, b)]
+                dec_f.append(filt.step(cands, u_norm[i]).decision)
+                dec_b.append(base.step(cands, u_norm[i]).decision)
+            rec_rates["sogp"].append(trajectory_rates(dec_sogp, truth_r))
+            rec_rates["bayes_filter"].append(trajectory_rates(dec_f, truth_r))
+            rec_rates["baseline"].append(trajectory_rates(dec_b, truth_r))
+        t_rec += time.perf_counter() - t1
+
+    t2 = time.perf_counter()
+    intro = introspection(X_true, y_all, run, labels, settings=settings, rng=rng)
+    t_intro = time.perf_counter() - t2
+    return {
+        "f05": {m: f05_with_targets(truth, pred[m], ok[m], labels) for m in METHODS},
+        "confusion": {
+            m: {
+                "rows": labels,
+                "columns": [*labels, WRONG_TARGET],
+                "matrix": confusion_with_targets(truth, pred[m], ok[m], labels),
+            }
+            for m in METHODS
+        },
+        "introspection_entropy": intro,
+        "trajectory_rates": {
+            r: {
+                key: float(np.mean([x[key] for x in rates])) if rates else float("nan")
+                for key in ("success", "error", "null")
+            }
+            for r, rates in rec_rates.items()
+        },
+        "n_runs": int(len(run_ids)),
+        "n_test_ticks": int(len(truth)),
+        "folds": int(settings.folds),
+        "seed": int(settings.seed),
+        "model": model,
+        "labels": labels,
+        "timings_s": {
+            "classification": round(t_cls, 2),
+            "trajectory_rates": round(t_rec, 2),
+            "introspection": round(t_intro, 2),
+            "total": round(time.perf_counter() - t_start, 2),
+        },
+    }
+
+
+def introspection(
+    X: np.ndarray,
+    y: np.ndarray,
+    run: np.ndarray,
+    labels: Sequence[str],
+    *,
+    settings: EvaluationSettings,
+    rng: np.random.Generator,
+) -> dict[str, dict[str, float]]:
+    """Mean normalised entropy (Eq. 7.7) on unseen task types, per classifier and pair.
+
+    For every pair of task types: train on the pair's way points (standardised on them),
+    query with the other types' way points (features against the demonstrated target).
+
+    Returns
+    -------
+    dict
+        Method -> {``"<a>+<b>"`` -> mean entropy in [0, 1], ``"mean"`` -> over pairs}.
+        Empty when fewer than 3 task types are present.
+    """
+    out: dict[str, dict[str, float]] = {m: {} for m in METHODS}
+    if len(labels) < 3:
+        return {}
+    wp = way_points_of(run, settings.stride)
+    for a, b in itertools.combinations(range(len(labels)), 2):
+        name = f"{labels[a]}+{labels[b]}"
+        train = wp[np.isin(y[wp], (a, b))]
+        test = wp[~np.isin(y[wp], (a, b))]
+        scaler = FeatureScaler().fit(X[train])
+        Ztr, Zte = scaler.transform(X[train]), scaler.transform(X[test])
+        for method in METHODS:
+            f = fit_method(
+                method, Ztr, y[train], run[train], settings=settings, rng=rng, probability=True
+            )
+            h = normalised_entropy(f.proba(Zte))  # Eq. (7.7)
+            out[method][name] = float(np.mean(h))
+    for method in METHODS:
+        out[method]["mean"] = float(np.mean(list(out[method].values())))
+    return out
+
+
+# --------------------------------------------------------------------------- report
+
+
+def format_report(result: Mapping[str, Any]) -> str:
+    """Human-readable tables of :func:`evaluate`'s result."""
+    labels = list(result["labels"])
+    lines = [
+        f"{result['n_runs']} runs, {result['folds']}-fold cross-validation by run, seed "
+        f"{result['seed']}; {result['n_test_ticks']} test ticks; model {result['model'] or '-'}",
+        "",
+        "F0.5 (right task type and right target among all candidates; thesis Table 7.6)",
+    ]
+    width = max(len(x) for x in [*labels, "macro"]) + 2
+    lines.append(" " * width + "".join(f"{m:>8}" for m in METHODS))
+    for c in [*labels, "macro"]:
+        lines.append(f"{c:<{width}}" + "".join(f"{result['f05'][m][c]:8.3f}" for m in METHODS))
+    for m in METHODS:
+        conf = result["confusion"][m]
+        lines += ["", f"confusion ({m}): rows true, columns predicted at the right target"]
+        cols = conf["columns"]
+        lines.append(" " * width + "".join(f"{c[:10]:>11}" for c in cols))
+        for name, row in zip(conf["rows"], conf["matrix"], strict=True):
+            lines.append(f"{name:<{width}}" + "".join(f"{v:11d}" for v in row))
+    intro = result["introspection_entropy"]
+    if intro:
+        lines += ["", "introspection: mean normalised entropy on unseen task types (Table 7.9)"]
+        pairs = [p for p in intro[METHODS[0]] if p != "mean"]
+        pw = max(len(p) for p in [*pairs, "mean"]) + 2
+        lines.append(" " * pw + "".join(f"{m:>8}" for m in METHODS))
+        for p in [*pairs, "mean"]:
+            lines.append(f"{p:<{pw}}" + "".join(f"{intro[m][p]:8.3f}" for m in METHODS))
+    lines += ["", "trajectory rates on held-out runs (Sec. 7.2.2), mean over runs"]
+    lines.append(f"{'':<14}{'success':>9}{'error':>9}{'null':>9}")
+    for r, v in result["trajectory_rates"].items():
+        lines.append(f"{r:<14}{v['success']:9.3f}{v['error']:9.3f}{v['null']:9.3f}")
+    t = result["timings_s"]
+    lines += ["", f"time: {t['total']:.1f} s"]
+    return "\n".join(lines)

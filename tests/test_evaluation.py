@@ -1,0 +1,210 @@
+"""Offline evaluation of the recognisers (autonomy.evaluation, asa evaluate; thesis 7.2-7.4)."""
+
+from __future__ import annotations
+
+import json
+import os
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from sklearn.metrics import fbeta_score
+
+from autonomy.evaluation import (
+    METHODS,
+    RECOGNISERS,
+    EvaluationSettings,
+    candidate_features,
+    evaluate,
+    f05_with_targets,
+    format_report,
+    run_folds,
+    way_points_of,
+)
+from autonomy.features import task_features
+from autonomy.training import synthetic_demonstrations
+from study.cli import main
+
+KINDS = {"doorway_crossing": "doorway", "object_inspection": "object", "wall_following": "wall"}
+FAST = EvaluationSettings(
+    folds=3,
+    capacity=30,
+    hyper_points=40,
+    hyper_restarts=1,
+    rf_trees=8,
+    stride=3,
+    test_stride=3,
+    inner_folds=2,
+)
+
+
+def synthetic_demos(rng: np.random.Generator, runs: int = 4, steps: int = 30):
+    """Synthetic demonstrations with candidates: the demonstrated target plus two
+    distractors of other kinds per tick (ids fixed per run)."""
+    q, task, run = synthetic_demonstrations(rng, runs=runs, steps=steps)
+    kinds = list(KINDS.values())
+    points, ids, ckinds, offsets, target = [], [], [], [0], []
+    shift = {r: rng.uniform(-2.5, 2.5, size=(2, 2)) for r in np.unique(run)}
+    for i in range(len(q)):
+        kind = KINDS[task[i]]
+        others = [k for k in kinds if k != kind]
+        s = q[i, :2]
+        cands = [(f"{kind}_{run[i]}", kind, s)]
+        for j, k in enumerate(others):
+            cands.append((f"{k}_{run[i]}", k, s + shift[run[i]][j]))
+        order = rng.permutation(len(cands))  # the recorder's order is the scene's
+        for j in order:
+            ids.append(cands[j][0])
+            ckinds.append(cands[j][1])
+            points.append(cands[j][2])
+        offsets.append(offsets[-1] + len(cands))
+        target.append(cands[0][0])
+    return SimpleNamespace(
+        q=q,
+        s=q[:, :2].copy(),
+        u_norm=q[:, 3:6].copy(),
+        run=run,
+        task=task,
+        target=np.array(target),
+        cand_offsets=np.array(offsets),
+        cand_points=np.array(points),
+        cand_ids=np.array(ids),
+        cand_kinds=np.array(ckinds),
+    )
+
+
+@pytest.fixture(scope="module")
+def result():
+    seed = int(os.environ.get("ASA_TEST_SEED", "20261123"))  # the conftest's seed, once
+    demos = synthetic_demos(np.random.default_rng(seed), runs=3, steps=25)
+    return evaluate(demos, kinds=KINDS, settings=FAST, model="synthetic")
+
+
+def test_candidate_features_equal_task_features_tick_by_tick(rng):
+    demos = synthetic_demos(rng, runs=1, steps=10)
+    q, tick = candidate_features(demos.cand_points, demos.cand_offsets, demos.u_norm)
+    for i in range(len(demos.q)):
+        a, b = demos.cand_offsets[i], demos.cand_offsets[i + 1]
+        np.testing.assert_allclose(q[a:b], task_features(demos.cand_points[a:b], demos.u_norm[i]))
+        assert np.all(tick[a:b] == i)
+
+
+def test_folds_split_runs_never_ticks_and_hold_every_task(rng):
+    runs = 4 * rng.integers(2, 6)
+    run_task = np.array(["a", "b", "c", "d"] * (runs // 4))
+    folds = int(rng.integers(2, runs // 4 + 1))
+    fold = run_folds(run_task, folds, rng)
+    assert fold.shape == (runs,) and set(fold.tolist()) == set(range(folds))
+    for k in range(folds):  # stratified: every task type in every fold
+        assert set(run_task[fold == k]) == {"a", "b", "c", "d"}
+    # ticks inherit their run's fold, so a run is never split
+    run = np.repeat(np.arange(runs), rng.integers(1, 9, size=runs))
+    tick_fold = fold[run]
+    for r in range(runs):
+        assert len(set(tick_fold[run == r].tolist())) == 1
+    wp = way_points_of(run, 3)
+    for r in range(runs):
+        rows = np.flatnonzero(run == r)
+        np.testing.assert_array_equal(wp[np.isin(wp, rows)], rows[::3])
+
+
+def test_f05_needs_the_right_target(rng):
+    labels = ["a", "b", "c"]
+    t = rng.choice(labels, size=200)
+    p = np.where(rng.random(200) < 0.7, t, rng.choice(labels, size=200))
+    ok = np.ones(200, dtype=bool)
+    got = f05_with_targets(t, p, ok, labels)
+    ref = fbeta_score(t, p, beta=0.5, labels=labels, average=None, zero_division=0)
+    np.testing.assert_allclose([got[c] for c in labels], ref)
+    assert got["macro"] == pytest.approx(np.mean(ref))
+    # the right type at a wrong target is a false positive and a false negative
+    ok[:50] = False
+    worse = f05_with_targets(t, p, ok, labels)
+    assert all(worse[c] <= got[c] for c in labels)
+    assert f05_with_targets(["a"], ["a"], [False], ["a"])["a"] == 0.0
+
+
+def test_evaluation_result_has_the_documented_shape(result):
+    labels = sorted(KINDS)
+    assert result["labels"] == labels and result["folds"] == FAST.folds
+    assert result["n_runs"] == 9 and result["model"] == "synthetic"
+    for m in METHODS:
+        f = result["f05"][m]
+        assert set(f) == {*labels, "macro"}
+        assert all(0.0 <= v <= 1.0 for v in f.values())
+        conf = np.array(result["confusion"][m]["matrix"])
+        assert conf.shape == (3, 4) and conf.sum() == result["n_test_ticks"]
+        intro = result["introspection_entropy"][m]
+        assert set(intro) == {
+            "doorway_crossing+object_inspection",
+            "doorway_crossing+wall_following",
+            "object_inspection+wall_following",
+            "mean",
+        }
+        assert all(0.0 <= v <= 1.0 for v in intro.values())
+    assert set(result["trajectory_rates"]) == set(RECOGNISERS)
+    for rates in result["trajectory_rates"].values():
+        assert sum(rates.values()) == pytest.approx(1.0)
+    json.dumps(result)  # plain JSON types
+    text = format_report(result)
+    assert "F0.5" in text and "introspection" in text and "bayes_filter" in text
+
+
+def test_the_sogp_recognises_synthetic_tasks_and_targets_well(result):
+    # Three well-separated synthetic patterns, distractors 0-3.5 m off the target.
+    assert result["f05"]["sogp"]["macro"] > 0.6
+    assert result["trajectory_rates"]["sogp"]["success"] > 0.5
+
+
+def test_bad_settings_are_refused(rng):
+    with pytest.raises(ValueError, match="--folds"):
+        EvaluationSettings(folds=1)
+    demos = synthetic_demos(rng, runs=1, steps=10)
+    with pytest.raises(ValueError, match=r"--folds: must be between 2 and the number of runs"):
+        evaluate(demos, kinds=KINDS, settings=EvaluationSettings(folds=4))
+    one = synthetic_demos(rng, runs=1, steps=10)
+    keep = one.task == "wall_following"
+    for name in ("q", "s", "u_norm", "run", "task", "target"):
+        setattr(one, name, getattr(one, name)[keep])
+    with pytest.raises(ValueError, match="at least 2 task types"):
+        evaluate(one, kinds=KINDS, settings=FAST, where="one_type")
+
+
+@pytest.fixture(scope="module")
+def recorded(tmp_path_factory):
+    out = tmp_path_factory.mktemp("eval") / "demos"
+    main(["demonstrations", "record", "--task", "all", "--runs", "1", "--seed", "4"]
+         + ["--out", str(out)])  # fmt: skip
+    return out
+
+
+@pytest.mark.parametrize(
+    ("args", "needle"),
+    [
+        (["--demonstrations", "{tmp}/none"], "none"),
+        (["--demonstrations", "{demos}", "--folds", "1"], "--folds"),
+        (["--demonstrations", "{demos}", "--folds", "5"], "--folds: must be between 2"),
+        (["--demonstrations", "{demos}", "--model", "{tmp}/bad.npz"], "bad.npz"),
+    ],
+)
+def test_asa_evaluate_bad_input_is_one_line_and_exit_2(args, needle, recorded, tmp_path, capsys):
+    (tmp_path / "bad.npz").write_bytes(b"not a model")
+    argv = [a.format(tmp=tmp_path, demos=recorded) for a in args]
+    with pytest.raises(SystemExit) as exit_info:
+        main(["evaluate", *argv])
+    assert exit_info.value.code == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("asa: error:") and needle in err and len(err.splitlines()) == 1
+
+
+@pytest.mark.slow
+def test_asa_evaluate_runs_on_recorded_demonstrations(recorded, tmp_path, capsys):
+    out = tmp_path / "eval.json"
+    main(["evaluate", "--demonstrations", str(recorded), "--folds", "2", "--json"]
+         + ["--out", str(out)])  # fmt: skip
+    printed = json.loads(capsys.readouterr().out)
+    saved = json.loads(out.read_text())
+    assert printed == saved
+    for key in ("f05", "confusion", "introspection_entropy", "trajectory_rates"):
+        assert key in saved
+    assert saved["n_runs"] == 4 and saved["folds"] == 2 and saved["seed"] == 0
