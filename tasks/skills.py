@@ -285,6 +285,13 @@ def _guard(u: np.ndarray, points: np.ndarray, s: SkillSettings) -> np.ndarray:
     return np.array([v[0], v[1], u[2]])
 
 
+def guard_command(u: np.ndarray, points: np.ndarray, settings: SkillSettings) -> np.ndarray:
+    """The skills' obstacle guard (see the module docstring) for any ideal command: ``u``
+    (3,) robot frame [m/s, m/s, rad/s], ``points`` (k, 2) laser points in the robot frame
+    [m]; returns the guarded command (3,). Used by synthetic participants."""
+    return _guard(np.asarray(u, dtype=float), np.asarray(points).reshape(-1, 2), settings)
+
+
 # --------------------------------------------------------------------------- skills
 
 

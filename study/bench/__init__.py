@@ -22,6 +22,7 @@ GROUPS: dict[str, str] = {
     "report": "study.bench.report",
     "ui": "study.bench.ui",
     "trial": "study.bench.trial",
+    "synth": "study.bench.synth",
 }
 
 

@@ -26,7 +26,8 @@ from study import __version__
 COMMANDS: dict[str, tuple[str, str]] = {
     "scenario": ("study.cli.scenario:scenario", "Inspect scenarios: components, map, PNG."),
     "bench": ("study.cli.bench:bench", "Measure the performance budgets (one JSON object)."),
-    "pilot": ("study.cli.pilot:pilot", "The main job: a synthetic pilot study (not built yet)."),
+    "pilot": ("study.cli.pilot:pilot", "The main job: a synthetic pilot study and its report."),
+    "synth": ("study.cli.synth:synth", "A whole study with synthetic participants (workers)."),
     "demonstrations": (
         "study.cli.demonstrations:demonstrations",
         "Record scripted demonstrations of the contextual tasks; summarise them.",
@@ -50,6 +51,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "train": (
         "study.cli.train:train_command",
         "Learn the contextual-task model from demonstrations (DP-GMM + SOGP).",
+    ),
+    "evaluate": (
+        "study.cli.evaluate:evaluate_command",
+        "Cross-validated recognition quality: F0.5, introspection, trajectory rates.",
     ),
 }
 

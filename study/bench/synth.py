@@ -1,0 +1,142 @@
+"""Benchmark group ``synth``: synthetic participants and whole synthetic studies (issue 6).
+
+Figures:
+
+- ``synthetic_trial_realtime_factor``: simulated seconds per wall second of one thesis
+  main trial (cluttered room, A -> B -> A with the inspection, secondary questions) in
+  the contextual-task mode, driven by a synthetic participant, with SQLite logging and the
+  rerun recording, in this one process (budget: above 50). ``synthetic_trial_cpu_factor``
+  is the same per CPU second of this process (less disturbed by other processes on a busy
+  machine), ``synthetic_trial_simulated_s`` the trial's simulated length;
+- ``synthetic_study_s``: wall seconds of :func:`study.synth.run_synthetic_study` of the
+  thesis protocol with 2 workers, recordings included, for
+  ``synthetic_study_participants`` participants: 18, or 2 with ``--quick``
+  (budget for 18, with the report: under 5 minutes on 2 cores).
+
+With ``--quick`` the trial is cut at 30 simulated seconds (``synthetic_trial_simulated_s``
+says so).
+"""
+
+from __future__ import annotations
+
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+from sqlalchemy.orm import Session
+
+from autonomy.modes import make_mode
+from sim.occupancy import build_grid
+from sim.scenario import load_scenario
+from sim.semantics import derive_components
+from sim.world import World
+from study.participants.synthetic import Population, SyntheticParticipant
+from study.protocol import load_protocol
+from study.storage import Participant, SessionRow, Study, open_database
+from study.synth import run_synthetic_study
+from study.trial import Scene, TrialSpec, run_trial
+from tasks.primary import PrimarySettings
+
+_SEED = 7061
+
+
+def _trial(folder: Path, timeout_s: float) -> dict:
+    protocol = load_protocol("thesis-7-6")
+    main = protocol.main
+    scenario = load_scenario(main.scenario)
+    components = derive_components(scenario)
+    engine = open_database(folder / "bench.db")
+    rng = np.random.default_rng(_SEED)
+    person = SyntheticParticipant(Population().sample(rng), rng)
+    with Session(engine) as s, s.begin():
+        study = Study(
+            name="bench",
+            protocol_text="",
+            protocol_sha256="0" * 64,
+            platform_version="bench",
+            seed=0,
+        )
+        s.add(study)
+        s.flush()
+        row = Participant(
+            study_id=study.id,
+            code="B01",
+            kind="synthetic",
+            parameters=person.parameters,
+            order_index=0,
+            mode_order=["contextual_task"],
+            seed=_SEED,
+        )
+        s.add(row)
+        s.flush()
+        session = SessionRow(participant_id=row.id)
+        s.add(session)
+        s.flush()
+        person_id, session_id = row.id, session.id
+    spec = TrialSpec(
+        phase="main",
+        ordinal=0,
+        attempt=0,
+        mode="contextual_task",
+        seed=_SEED,
+        instruction="",
+        primary=PrimarySettings(
+            route=("dock", "start"), inspection_required=True, timeout_s=timeout_s
+        ),
+        secondary=protocol.secondary_settings,
+    )
+    values = {
+        "participant_id": person_id,
+        "session_id": session_id,
+        "phase": "main",
+        "mode": "contextual_task",
+        "ordinal": 0,
+        "attempt": 0,
+        "scenario": scenario.name,
+        "seed": _SEED,
+    }
+    with World(scenario, seed=0, components=components) as world:
+        scene = Scene(scenario.name, scenario, build_grid(scenario), components, world)
+        mode = make_mode(
+            "contextual_task", **dict(protocol.mode_settings.get("contextual_task", {}))
+        )
+        wall0, cpu0 = time.perf_counter(), time.process_time()
+        result = run_trial(
+            engine,
+            spec,
+            scene=scene,
+            participant=person,
+            mode=mode,
+            trial_values=values,
+            recording_dir=folder,
+            recording_rel=lambda tid: f"rec/{tid}.rrd",
+            session_id=session_id,
+        )
+        wall, cpu = time.perf_counter() - wall0, time.process_time() - cpu0
+    engine.dispose()
+    return {
+        "synthetic_trial_realtime_factor": round(result.duration_s / wall, 2),
+        "synthetic_trial_cpu_factor": round(result.duration_s / max(cpu, 1e-9), 2),
+        "synthetic_trial_simulated_s": round(result.duration_s, 2),
+        "synthetic_trial_completed": bool(result.outcome.get("completed")),
+    }
+
+
+def run(quick: bool) -> dict:
+    """One synthetic main trial, then a synthetic study (2 participants with ``quick``)."""
+    figures: dict = {}
+    with tempfile.TemporaryDirectory(prefix="asa-bench-synth-") as tmp:
+        folder = Path(tmp)
+        try:
+            figures.update(_trial(folder, 30.0 if quick else 900.0))
+        except ValueError as error:  # e.g. a shipped model the mode cannot read
+            figures["synthetic_trial_error"] = str(error)
+        n = 2 if quick else 18
+        summary = run_synthetic_study(
+            "thesis-7-6", folder / "study.db", participants=n, seed=_SEED, workers=2
+        )
+        figures["synthetic_study_s"] = round(summary.wall_s, 1)
+        figures["synthetic_study_participants"] = n
+        figures["synthetic_study_protocol"] = "thesis-7-6"
+    return figures

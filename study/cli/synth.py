@@ -1,0 +1,76 @@
+"""``asa synth``: a whole study with synthetic participants (:func:`study.synth.
+run_synthetic_study`), in worker processes; the database is the same whatever the number
+of workers. One line per finished participant (with the live count) goes to stderr, the
+summary to stdout. Started again after an interruption, it skips the participants already
+in the database and runs the others from scratch."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import click
+
+
+@click.command("synth")
+@click.option("--protocol", required=True, help="Shipped protocol name or TOML file.")
+@click.option(
+    "--participants",
+    type=int,
+    default=None,
+    help="How many synthetic participants (P01..PNN); default the protocol's number.",
+)
+@click.option("--seed", type=int, default=0, show_default=True, help="The synthetic study's seed.")
+@click.option(
+    "--workers",
+    type=int,
+    default=None,
+    help="Worker processes; default the number of CPUs.",
+)
+@click.option(
+    "--db",
+    required=True,
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Study database (SQLite file; created, or continued if interrupted).",
+)
+@click.option(
+    "--recordings",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=None,
+    help="Folder for the rerun recordings; default <db stem>_recordings beside the database.",
+)
+def synth(
+    protocol: str,
+    participants: int | None,
+    seed: int,
+    workers: int | None,
+    db: Path,
+    recordings: Path | None,
+) -> None:
+    """Run every participant's session of a protocol with synthetic participants.
+
+    \b
+    Example:
+      asa synth --protocol pilot --participants 6 --seed 1 --workers 2 --db pilot.db
+    """
+    from study.protocol import load_protocol
+    from study.synth import format_summary, run_synthetic_study, sanity_summary
+
+    p = load_protocol(protocol)
+    n = participants if participants is not None else p.study.participants
+    w = workers if workers is not None else (os.cpu_count() or 1)
+    summary = run_synthetic_study(
+        p,
+        db,
+        participants=n,
+        seed=seed,
+        workers=w,
+        recordings=recordings,
+        progress=lambda line: click.echo(line, err=True),
+    )
+    click.echo(
+        f"{summary.db}: {len(summary.run)} participants run, {len(summary.skipped)} skipped, "
+        f"in {summary.wall_s:.1f} s"
+    )
+    for line in format_summary(sanity_summary(summary.db)):
+        click.echo(line)

@@ -1,0 +1,201 @@
+"""Whole synthetic studies (study/synth.py, ``asa synth``, ``asa pilot``): the database
+does not depend on the number of workers, an interrupted study continues to the same
+result, ``asa db check`` accepts it, bad options are refused."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from study.dbtools import check
+from study.storage import Base, Participant, Sample, Study, open_database
+from study.synth import (
+    format_summary,
+    participant_codes,
+    run_synthetic_study,
+    sanity_summary,
+)
+
+TINY = """
+# every kind of phase, each as short as it goes (about 20 s of wall time per study)
+[study]
+name = "tiny-synth"
+participants = 2
+seed = 5
+
+[modes]
+names = ["manual", "reactive_bn"]
+counterbalancing = "full_permutation"
+
+[[phases]]
+kind = "briefing"
+text = "Tiny."
+
+[[phases]]
+kind = "experience"
+instrument = "experience"
+
+[[phases]]
+kind = "training"
+scenario = "practice_course"
+duration_s = 2.0
+secondary = false
+
+[[phases]]
+kind = "practice"
+scenario = "practice_course"
+time_limit_s = 60.0
+max_collisions = 0
+secondary = false
+max_attempts = 1
+on_fail = "continue"
+order = "assigned"
+
+[[phases]]
+kind = "baseline"
+questions = 3
+
+[[phases]]
+kind = "main"
+scenario = "practice_course"
+route = ["A", "B"]
+inspection = false
+secondary = false
+timeout_s = 90.0
+
+[phases.after_trial]
+instrument = "nasa_tlx"
+weights = "per_trial"
+
+[[phases]]
+kind = "debrief"
+text = "Done."
+"""
+
+WALL_CLOCK = {"created_at", "started_at", "ended_at"}
+
+
+def _tables(db: Path) -> dict[str, list[tuple]]:
+    """Every results table, rows in id order, wall-clock columns left out."""
+    engine = open_database(db, create=False)
+    out = {}
+    with engine.connect() as conn:
+        for name, table in Base.metadata.tables.items():
+            if name == "meta":
+                continue
+            cols = [c for c in table.c if c.name not in WALL_CLOCK]
+            out[name] = [tuple(r) for r in conn.execute(select(*cols).order_by(table.c.id))]
+    engine.dispose()
+    return out
+
+
+def _cli(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "study.cli", *args],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        cwd=cwd,
+    )
+
+
+def test_participant_codes():
+    assert participant_codes(3) == ("P01", "P02", "P03")
+    assert participant_codes(100)[0] == "P001" and participant_codes(100)[-1] == "P100"
+
+
+def test_same_database_whatever_the_workers_and_after_an_interruption(tmp_path, seed):
+    proto = tmp_path / "tiny.toml"
+    proto.write_text(TINY)
+    s = str(seed % 100_000)
+    # two workers, through the CLI
+    (tmp_path / "a").mkdir()
+    done = _cli(
+        "synth", "--protocol", str(proto), "--participants", "2", "--seed", s,
+        "--workers", "2", "--db", str(tmp_path / "a" / "t.db"),
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert "[2/2]" in done.stderr and "manual" in done.stdout
+    # one worker, interrupted after P01: P02 left a half-written file and a recording
+    b = tmp_path / "b" / "t.db"
+    first = run_synthetic_study(str(proto), b, participants=1, seed=int(s), workers=1)
+    assert first.run == ("P01",)
+    (b.parent / "t_work").mkdir(exist_ok=True)
+    (b.parent / "t_work" / "P02.db").write_bytes(b"half a database")
+    (b.parent / "t_recordings" / "P02").mkdir(parents=True)
+    (b.parent / "t_recordings" / "P02" / "s1_training_0_a0.rrd").write_bytes(b"stale")
+    again = run_synthetic_study(str(proto), b, participants=2, seed=int(s), workers=1)
+    assert again.skipped == ("P01",) and again.run == ("P02",)
+    assert not (b.parent / "t_work").exists()
+
+    ta, tb = _tables(tmp_path / "a" / "t.db"), _tables(b)
+    for name in ta:
+        assert ta[name] == tb[name], name
+    assert len(ta["participant"]) == 2 and len(ta["sample"]) > 1000
+
+    for db in (tmp_path / "a" / "t.db", b):
+        report = check(db)
+        assert report.clean, report.text()
+    engine = open_database(b, create=False)
+    with Session(engine) as sess:
+        people = sess.scalars(select(Participant).order_by(Participant.id)).all()
+        assert [p.code for p in people] == ["P01", "P02"]
+        assert all(p.kind == "synthetic" and "preferred_speed" in p.parameters for p in people)
+        assert sess.scalar(select(Sample.id).where(Sample.true_task != "").limit(1))
+    engine.dispose()
+    summary = sanity_summary(b)
+    assert set(summary) == {"manual", "reactive_bn"}
+    assert all(e["trials"] == 2 for e in summary.values())
+    assert len(format_summary(summary)) == 2
+    # nothing left to do
+    assert run_synthetic_study(str(proto), b, participants=2, seed=int(s)).run == ()
+
+
+@pytest.mark.parametrize(
+    ("field", "kwargs"),
+    [
+        ("--participants", {"participants": 0}),
+        ("--workers", {"workers": 0}),
+        ("--seed", {"seed": -1}),
+    ],
+)
+def test_bad_options_are_refused(tmp_path, field, kwargs):
+    options = {"participants": 1, "seed": 0, "workers": 1, **kwargs}
+    with pytest.raises(ValueError, match=field):
+        run_synthetic_study("pilot", tmp_path / "x.db", **options)
+    assert not (tmp_path / "x.db").exists()
+
+
+def test_a_database_url_or_another_protocol_is_refused(tmp_path):
+    with pytest.raises(ValueError, match="--db"):
+        run_synthetic_study("pilot", "sqlite:///x.db", participants=1, seed=0)
+    db = tmp_path / "other.db"
+    engine = open_database(db)
+    with Session(engine) as s, s.begin():
+        s.add(
+            Study(
+                name="other",
+                protocol_text="",
+                protocol_sha256="0" * 64,
+                platform_version="t",
+                seed=0,
+            )
+        )
+    engine.dispose()
+    with pytest.raises(ValueError, match="protocol"):
+        run_synthetic_study("pilot", db, participants=1, seed=0)
+
+
+def test_cli_bad_input_is_one_line_and_exit_2(tmp_path):
+    done = _cli("synth", "--protocol", "pilot", "--workers", "0", "--db", str(tmp_path / "x.db"))
+    assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1
+    assert "--workers" in done.stderr
+    (tmp_path / "full").mkdir()
+    (tmp_path / "full" / "something").write_text("x")
+    done = _cli("pilot", "--out", str(tmp_path / "full"))
+    assert done.returncode == 2 and "--out" in done.stderr
