@@ -31,6 +31,11 @@ Decisions where the spec is silent:
 - Non-trial phases (briefing, experience, debrief) are marked done by a ``phase_done``
   event, written in the same transaction as their responses, so a resumed session skips
   them.
+- Training is for people to learn the interface and the modes. A participant whose
+  ``learns`` attribute is False (a synthetic participant: its skill is a fixed sample of
+  the population model, so training would change nothing and cost about 40 % of a thesis
+  session's simulation) skips it: the phase is marked done with a ``phase_done`` event
+  whose detail names the reason (``skipped``), and no training trials are stored.
 - Training: one trial per mode in the protocol's training order, on the main route
   without the inspection requirement, ending after ``duration_s`` or when the route is
   driven, whichever comes first. Practice goes from A to pose B only. A practice attempt
@@ -107,6 +112,7 @@ from study.trial import (
 from tasks.primary import PrimarySettings, route_from_points
 
 CODE_PATTERN = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_-]{0,63}$")
+NO_LEARNING = "the participant does not learn (participant.learns is False)"
 MAX_RANDOM_INDEX = 100_000  # participant numbers the random scheme serves
 _PHASE_INDEX = {"training": 1, "practice": 2, "baseline": 3, "main": 4}
 DEFAULT_INSTRUCTIONS = {
@@ -257,7 +263,10 @@ class _Runner:
             ).all()
         return any(e.detail.get("phase") == kind for e in events)
 
-    def _mark_done(self, kind: str, responses: Sequence[Response] = ()) -> None:
+    def _mark_done(
+        self, kind: str, responses: Sequence[Response] = (), *, skipped: str = ""
+    ) -> None:
+        detail = {"phase": kind, **({"skipped": skipped} if skipped else {})}
         with Session(self.engine) as s, s.begin():
             s.add_all(responses)
             s.add(
@@ -266,7 +275,7 @@ class _Runner:
                     trial_id=None,
                     t=0.0,
                     kind="phase_done",
-                    detail={"phase": kind},
+                    detail=detail,
                 )
             )
 
@@ -381,6 +390,11 @@ class _Runner:
         )
 
     def training(self, phase: Training) -> bool:
+        if not getattr(self.participant, "learns", True):
+            if not self._phase_done("training"):
+                self._mark_done("training", skipped=NO_LEARNING)
+                self.progress(f"{self.code} training skipped: {NO_LEARNING}")
+            return True
         main = self.protocol.main
         for ordinal, mode in enumerate(phase.modes):
             if any(t.status == "completed" for t in self._trials("training", ordinal)):

@@ -13,7 +13,7 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from study.dbtools import check
-from study.storage import Base, Participant, Sample, Study, open_database
+from study.storage import Base, Event, Participant, Sample, Study, Trial, open_database
 from study.synth import (
     format_summary,
     participant_codes,
@@ -147,6 +147,11 @@ def test_same_database_whatever_the_workers_and_after_an_interruption(tmp_path, 
         assert [p.code for p in people] == ["P01", "P02"]
         assert all(p.kind == "synthetic" and "preferred_speed" in p.parameters for p in people)
         assert sess.scalar(select(Sample.id).where(Sample.true_task != "").limit(1))
+        # synthetic participants do not learn: training is skipped, and it says so
+        assert not sess.scalars(select(Trial).where(Trial.phase == "training")).all()
+        done = sess.scalars(select(Event).where(Event.kind == "phase_done")).all()
+        skipped = [e for e in done if e.detail.get("phase") == "training"]
+        assert len(skipped) == 2 and all("not learn" in e.detail["skipped"] for e in skipped)
     engine.dispose()
     summary = sanity_summary(b)
     assert set(summary) == {"manual", "reactive_bn"}

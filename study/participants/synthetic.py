@@ -62,6 +62,10 @@ Driving (decisions where the spec is silent)
 - Questions are read as they appear; the answer is pressed after the drawn answer time
   (a time beyond the task's timeout lets the question time out).
 
+Training: the model does not learn (its skill is fixed by the sampled parameters), so
+``learns = False`` and the session engine skips the protocol's training phase, recording
+why (:mod:`study.session`); everything from practice on is run as for a person.
+
 Questionnaires: :func:`tlx_ratings` turns what the trial was like (:class:`TrialLoad`,
 from the stored outcome and what the participant noticed while driving) into ratings;
 see its docstring. Pairwise choices prefer the subscale with the larger importance
@@ -336,6 +340,8 @@ class SyntheticParticipant:
     """
 
     kind = "synthetic"
+    # the model's skill is a fixed sample: the session engine skips the training phase
+    learns = False
 
     def __init__(self, params: ParticipantParams, rng: np.random.Generator) -> None:
         self.params = params
