@@ -1,5 +1,11 @@
 """The study: protocols, counterbalancing, sessions, participants, storage,
-recording and the ``asa`` command line."""
+recording and the ``asa`` command line.
+
+The jobs of the command line are plain functions first (DESIGN.md, "Interfaces"):
+``study.run_session`` (one participant's session), ``study.run_synthetic_study`` (a whole
+study of synthetic participants), ``study.load_protocol``; they are imported on first use,
+so ``import study`` stays light.
+"""
 
 from importlib.metadata import PackageNotFoundError, version
 
@@ -7,3 +13,18 @@ try:
     __version__ = version("asa-study")
 except PackageNotFoundError:  # running from a source tree that is not installed
     __version__ = "0.0.0+unknown"
+
+
+_LAZY = {
+    "run_session": "study.session",
+    "run_synthetic_study": "study.synth",
+    "load_protocol": "study.protocol",
+}
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        import importlib
+
+        return getattr(importlib.import_module(_LAZY[name]), name)
+    raise AttributeError(f"module 'study' has no attribute {name!r}")
