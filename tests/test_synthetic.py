@@ -14,10 +14,9 @@ from hypothesis import strategies as st
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from autonomy.modes import available_modes, make_mode
+from autonomy.modes import available_modes
 from questionnaires import experience as experience_q
 from questionnaires import nasa_tlx
-from sim.occupancy import build_grid
 from sim.scenario import load_scenario
 from sim.semantics import derive_components
 from sim.world import World
@@ -30,12 +29,10 @@ from study.participants import (
     tlx_ratings,
 )
 from study.participants.synthetic import DISTRACTIONS, TLX_ORDER
-from study.storage import Participant as ParticipantRow
-from study.storage import Sample, SessionRow, Study, open_database
-from study.trial import Scene, TrialSpec, run_trial
+from study.standalone import standalone_trial
+from study.storage import Sample
 from study.types import ScreenState, TrialInfo
 from tasks.contextual import TASK_TYPES
-from tasks.primary import PrimarySettings
 
 SEEDS = st.integers(min_value=0, max_value=2**32 - 1)
 
@@ -197,73 +194,23 @@ def test_answers_take_time_and_are_slower_while_driving(seed):
 
 
 def _short_trial(tmp_path, mode_name: str, seed: int):
-    scenario = load_scenario("practice_course")
-    components = derive_components(scenario)
-    engine = open_database(tmp_path / f"{mode_name}.db")
     rng = np.random.default_rng(seed)
     person = SyntheticParticipant(Population().sample(rng), rng)
-    with Session(engine) as s, s.begin():
-        study = Study(
-            name="t", protocol_text="", protocol_sha256="0" * 64, platform_version="t", seed=0
-        )
-        s.add(study)
-        s.flush()
-        row = ParticipantRow(
-            study_id=study.id,
-            code="S01",
-            kind="synthetic",
-            parameters=person.parameters,
-            order_index=0,
-            mode_order=[mode_name],
-            seed=seed,
-        )
-        s.add(row)
-        s.flush()
-        session = SessionRow(participant_id=row.id)
-        s.add(session)
-        s.flush()
-        pid, sid = row.id, session.id
-    spec = TrialSpec(
-        phase="practice",
-        ordinal=0,
-        attempt=0,
+    result, engine = standalone_trial(
+        tmp_path,
+        person,
         mode=mode_name,
+        scenario="practice_course",
+        phase="practice",
+        route=("dock",),
+        timeout_s=120.0,
         seed=seed,
-        instruction="",
-        primary=PrimarySettings(route=("dock",), inspection_required=False, timeout_s=120.0),
-        secondary=None,
+        database=f"{mode_name}.db",
     )
-    values = {
-        "participant_id": pid,
-        "session_id": sid,
-        "phase": "practice",
-        "mode": mode_name,
-        "ordinal": 0,
-        "attempt": 0,
-        "scenario": scenario.name,
-        "seed": seed,
-    }
-    with World(scenario, seed=0, components=components) as world:
-        scene = Scene(scenario.name, scenario, build_grid(scenario), components, world)
-        try:
-            mode = make_mode(mode_name)
-        except ValueError as error:  # a shipped model being retrained elsewhere
-            pytest.skip(f"mode {mode_name} cannot be built: {error}")
-        result = run_trial(
-            engine,
-            spec,
-            scene=scene,
-            participant=person,
-            mode=mode,
-            trial_values=values,
-            recording_dir=tmp_path,
-            recording_rel=lambda tid: f"rec/{tid}.rrd",
-            session_id=sid,
-        )
     with Session(engine) as s:
         truth = s.execute(select(Sample.true_task, Sample.true_target)).all()
     engine.dispose()
-    return result, truth, components
+    return result, truth, derive_components(load_scenario("practice_course"))
 
 
 @pytest.mark.parametrize("mode_name", available_modes())

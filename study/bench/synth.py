@@ -24,19 +24,11 @@ import time
 from pathlib import Path
 
 import numpy as np
-from sqlalchemy.orm import Session
 
-from autonomy.modes import make_mode
-from sim.occupancy import build_grid
-from sim.scenario import load_scenario
-from sim.semantics import derive_components
-from sim.world import World
 from study.participants.synthetic import Population, SyntheticParticipant
 from study.protocol import load_protocol
-from study.storage import Participant, SessionRow, Study, open_database
+from study.standalone import standalone_trial
 from study.synth import run_synthetic_study
-from study.trial import Scene, TrialSpec, run_trial
-from tasks.primary import PrimarySettings
 
 _SEED = 7061
 
@@ -44,76 +36,28 @@ _SEED = 7061
 def _trial(folder: Path, timeout_s: float) -> dict:
     protocol = load_protocol("thesis-7-6")
     main = protocol.main
-    scenario = load_scenario(main.scenario)
-    components = derive_components(scenario)
-    engine = open_database(folder / "bench.db")
     rng = np.random.default_rng(_SEED)
     person = SyntheticParticipant(Population().sample(rng), rng)
-    with Session(engine) as s, s.begin():
-        study = Study(
-            name="bench",
-            protocol_text="",
-            protocol_sha256="0" * 64,
-            platform_version="bench",
-            seed=0,
-        )
-        s.add(study)
-        s.flush()
-        row = Participant(
-            study_id=study.id,
-            code="B01",
-            kind="synthetic",
-            parameters=person.parameters,
-            order_index=0,
-            mode_order=["contextual_task"],
-            seed=_SEED,
-        )
-        s.add(row)
-        s.flush()
-        session = SessionRow(participant_id=row.id)
-        s.add(session)
-        s.flush()
-        person_id, session_id = row.id, session.id
-    spec = TrialSpec(
-        phase="main",
-        ordinal=0,
-        attempt=0,
+    first: list[float] = []  # clocks at the first tick: the setup is not the trial's
+
+    def on_tick(tick: int, writer: object) -> None:
+        if not first:
+            first.extend((time.perf_counter(), time.process_time()))
+
+    result, engine = standalone_trial(
+        folder,
+        person,
         mode="contextual_task",
-        seed=_SEED,
-        instruction="",
-        primary=PrimarySettings(
-            route=("dock", "start"), inspection_required=True, timeout_s=timeout_s
-        ),
+        scenario=main.scenario,
+        inspection=True,
+        timeout_s=timeout_s,
         secondary=protocol.secondary_settings,
+        seed=_SEED,
+        mode_settings=protocol.mode_settings.get("contextual_task", {}),
+        database="bench.db",
+        on_tick=on_tick,
     )
-    values = {
-        "participant_id": person_id,
-        "session_id": session_id,
-        "phase": "main",
-        "mode": "contextual_task",
-        "ordinal": 0,
-        "attempt": 0,
-        "scenario": scenario.name,
-        "seed": _SEED,
-    }
-    with World(scenario, seed=0, components=components) as world:
-        scene = Scene(scenario.name, scenario, build_grid(scenario), components, world)
-        mode = make_mode(
-            "contextual_task", **dict(protocol.mode_settings.get("contextual_task", {}))
-        )
-        wall0, cpu0 = time.perf_counter(), time.process_time()
-        result = run_trial(
-            engine,
-            spec,
-            scene=scene,
-            participant=person,
-            mode=mode,
-            trial_values=values,
-            recording_dir=folder,
-            recording_rel=lambda tid: f"rec/{tid}.rrd",
-            session_id=session_id,
-        )
-        wall, cpu = time.perf_counter() - wall0, time.process_time() - cpu0
+    wall, cpu = time.perf_counter() - first[0], time.process_time() - first[1]
     engine.dispose()
     return {
         "synthetic_trial_realtime_factor": round(result.duration_s / wall, 2),

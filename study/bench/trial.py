@@ -31,21 +31,13 @@ from __future__ import annotations
 
 import tempfile
 import time
-from pathlib import Path
 from typing import Any
 
 import numpy as np
-from sqlalchemy.orm import Session
 
-from autonomy.modes import make_mode
-from sim.occupancy import build_grid
-from sim.scenario import load_scenario
-from sim.semantics import derive_components
-from sim.world import World
 from study.participants import ScriptedParticipant
-from study.storage import Participant, SessionRow, Study, open_database
-from study.trial import Scene, TrialSpec, TrialWriter, run_trial
-from tasks.primary import PrimarySettings
+from study.standalone import standalone_trial
+from study.trial import TrialWriter
 from tasks.secondary import SecondarySettings
 
 MODES = ("manual", "reactive_bn", "contextual_task")
@@ -69,34 +61,6 @@ class _TimedMode:
         return out
 
 
-def _database(folder: Path) -> tuple[Any, int, int]:
-    engine = open_database(folder / "bench.db")
-    with Session(engine) as s, s.begin():
-        study = Study(
-            name="bench",
-            protocol_text="",
-            protocol_sha256="0" * 64,
-            platform_version="bench",
-            seed=0,
-        )
-        s.add(study)
-        s.flush()
-        person = Participant(
-            study_id=study.id,
-            code="B01",
-            kind="scripted",
-            order_index=0,
-            mode_order=list(MODES),
-            seed=_SEED,
-        )
-        s.add(person)
-        s.flush()
-        session = SessionRow(participant_id=person.id)
-        s.add(session)
-        s.flush()
-        return engine, person.id, session.id
-
-
 def _summary(values_ms: list[float]) -> dict[str, float]:
     a = np.asarray(values_ms)
     return {
@@ -106,78 +70,48 @@ def _summary(values_ms: list[float]) -> dict[str, float]:
     }
 
 
-def _ticks(
-    engine: Any,
-    spec: TrialSpec,
-    scene: Scene,
-    values: dict[str, Any],
-    folder: Path,
-    session_id: int,
+def _measure(
+    folder: str, name: str, seed: int, segment_s: float
 ) -> tuple[list[float], list[float], _TimedMode]:
-    """Run one trial; the wall and CPU clocks [s] after every tick, and the timed mode."""
+    """One trial segment of mode ``name``: wall and CPU clocks [s] after every tick."""
     wall: list[float] = []
     cpu: list[float] = []
+    timed: list[_TimedMode] = []
 
     def on_tick(tick: int, writer: TrialWriter) -> None:
         wall.append(time.perf_counter())
         cpu.append(time.process_time())
 
-    mode = _TimedMode(make_mode(spec.mode))
-    run_trial(
-        engine,
-        spec,
-        scene=scene,
-        participant=ScriptedParticipant(np.random.default_rng(_SEED)),
-        mode=mode,
-        trial_values=values,
-        recording_dir=folder,
-        recording_rel=lambda tid: f"rec/{tid}.rrd",
-        session_id=session_id,
+    def wrap(mode: Any) -> _TimedMode:
+        timed.append(_TimedMode(mode))
+        return timed[-1]
+
+    # the segment ends by the task's timeout: the same loop, shorter
+    _, engine = standalone_trial(
+        folder,
+        ScriptedParticipant(np.random.default_rng(_SEED)),
+        mode=name,
+        inspection=True,
+        timeout_s=segment_s,
+        secondary=SecondarySettings(),
+        seed=seed,
         on_tick=on_tick,
+        wrap_mode=wrap,
+        database=f"{name}.db",
     )
-    return wall, cpu, mode
+    engine.dispose()
+    return wall, cpu, timed[0]
 
 
 def run(quick: bool) -> dict:
     """Run a scripted main-trial segment per mode; ``quick`` runs 10 s instead of 60 s."""
     segment_s = 10.0 if quick else 60.0
-    scenario = load_scenario("cluttered_room")
-    components = derive_components(scenario)
-    figures: dict = {"trial_scene": scenario.name, "trial_segment_s": segment_s}
+    figures: dict = {"trial_scene": "cluttered_room", "trial_segment_s": segment_s}
     means, cpu_means = [], []
-    with (
-        tempfile.TemporaryDirectory(prefix="asa-bench-") as tmp,
-        World(scenario, seed=0, components=components) as world,
-    ):
-        folder = Path(tmp)
-        scene = Scene(scenario.name, scenario, build_grid(scenario), components, world)
-        engine, person_id, session_id = _database(folder)
+    with tempfile.TemporaryDirectory(prefix="asa-bench-") as tmp:
         for ordinal, name in enumerate(MODES):
-            spec = TrialSpec(
-                phase="main",
-                ordinal=ordinal,
-                attempt=0,
-                mode=name,
-                seed=_SEED + ordinal,
-                instruction="",
-                # the segment ends by the task's timeout: the same loop, shorter
-                primary=PrimarySettings(
-                    route=("dock", "start"), inspection_required=True, timeout_s=segment_s
-                ),
-                secondary=SecondarySettings(),
-            )
-            values = {
-                "participant_id": person_id,
-                "session_id": session_id,
-                "phase": "main",
-                "mode": name,
-                "ordinal": ordinal,
-                "attempt": 0,
-                "scenario": scenario.name,
-                "seed": spec.seed,
-            }
             try:
-                wall, cpu, mode = _ticks(engine, spec, scene, values, folder, session_id)
+                wall, cpu, mode = _measure(tmp, name, _SEED + ordinal, segment_s)
             except ValueError as error:  # e.g. a shipped model the mode cannot read
                 figures[f"trial_error_{name}"] = str(error)
                 continue
@@ -188,7 +122,6 @@ def run(quick: bool) -> dict:
             figures[f"trial_mode_ms_{name}"] = round(1e3 * float(np.mean(mode.step_s[1:])), 4)
             means.append(float(np.mean(tick_ms)))
             cpu_means.append(cpu_ms)
-        engine.dispose()
     if means:
         figures["trial_tick_ms_mean"] = round(float(np.mean(means)), 4)
         figures["trial_tick_cpu_ms_mean"] = round(float(np.mean(cpu_means)), 4)

@@ -42,82 +42,25 @@ def headless_trial(
 ) -> tuple[Any, Engine]:
     """One driving trial of ``seconds`` simulated seconds (A -> B -> A, no inspection) in a
     fresh database in ``folder``, camera frames in its recording at ``camera_hz``; returns
-    ``(TrialResult, engine)``."""
-    from autonomy.modes import make_mode
-    from sim.occupancy import build_grid
-    from sim.scenario import load_scenario
-    from sim.semantics import derive_components
-    from sim.world import World
-    from study.storage import Participant, SessionRow, Study, open_database
-    from study.trial import Scene, TrialSpec, run_trial
-    from tasks.primary import PrimarySettings
+    ``(TrialResult, engine)`` (:func:`study.standalone.standalone_trial`)."""
+    from study.standalone import standalone_trial
     from tasks.secondary import SecondarySettings
 
-    sc = load_scenario(scenario)
-    components = derive_components(sc)
-    world = World(sc, seed=0, components=components)
-    engine = open_database(folder / "ui.db")
-    with Session(engine) as s, s.begin():
-        study = Study(
-            name="ui", protocol_text="", protocol_sha256="0" * 64, platform_version="bench", seed=0
-        )
-        s.add(study)
-        s.flush()
-        person = Participant(
-            study_id=study.id,
-            code="P01",
-            kind=getattr(participant, "kind", "human"),
-            order_index=0,
-            mode_order=[mode],
-            seed=seed,
-        )
-        s.add(person)
-        s.flush()
-        row = SessionRow(participant_id=person.id)
-        s.add(row)
-        s.flush()
-        ids = (person.id, row.id)
-    spec = TrialSpec(
-        phase=phase,
-        ordinal=0,
-        attempt=0,
+    return standalone_trial(
+        folder,
+        participant,
         mode=mode,
-        seed=seed,
-        instruction="Drive from A to B and back to A; answer the questions when they appear.",
-        primary=PrimarySettings(
-            route=("dock", "start"), inspection_required=False, timeout_s=seconds
-        ),
+        scenario=scenario,
+        phase=phase,
+        timeout_s=seconds,
         secondary=SecondarySettings() if secondary else None,
-        camera_hz=camera_hz,
-    )
-    values = dict(
-        participant_id=ids[0],
-        session_id=ids[1],
-        phase=phase,
-        mode=mode,
-        ordinal=0,
-        attempt=0,
-        scenario=sc.name,
         seed=seed,
+        camera_hz=camera_hz,
+        clock=clock,
+        control=control,
+        on_tick=on_tick,
+        database="ui.db",
     )
-    try:
-        result = run_trial(
-            engine,
-            spec,
-            scene=Scene(sc.name, sc, build_grid(sc), components, world),
-            participant=participant,
-            mode=make_mode(mode),
-            trial_values=values,
-            recording_dir=folder,
-            recording_rel=lambda tid: f"rec/trial_{tid}.rrd",
-            session_id=ids[1],
-            clock=clock,
-            control=control,
-            on_tick=on_tick,
-        )
-    finally:
-        world.close()
-    return result, engine
 
 
 def run(quick: bool = False) -> dict:

@@ -1,0 +1,140 @@
+"""One trial outside a session, for benchmarks, tests and a quick look at one mode.
+
+:func:`standalone_trial` makes a fresh study database in a folder (a study, a participant
+and a session row, so the trial's rows have their parents), builds the scene and its
+:class:`sim.world.World`, runs :func:`study.trial.run_trial` exactly as a session does, and
+closes the world. The recording goes to ``<folder>/rec/trial_<id>.rrd``.
+
+Decision: the participant row takes the participant's own ``kind`` and ``parameters``, and
+the mode's settings are the registry defaults unless ``mode_settings`` says otherwise.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import Any
+
+from sqlalchemy.engine import Engine
+from sqlalchemy.orm import Session
+
+from autonomy.modes import make_mode
+from sim.occupancy import build_grid
+from sim.scenario import load_scenario
+from sim.semantics import derive_components
+from sim.world import World
+from study.storage import Participant, SessionRow, Study, open_database
+from study.trial import Scene, TrialResult, TrialSpec, TrialWriter, run_trial
+from tasks.primary import PrimarySettings
+from tasks.secondary import SecondarySettings
+
+
+def standalone_trial(
+    folder: str | Path,
+    participant: Any,
+    *,
+    mode: str = "manual",
+    scenario: str = "cluttered_room",
+    phase: str = "main",
+    route: tuple[str, ...] = ("dock", "start"),
+    inspection: bool = False,
+    timeout_s: float = 60.0,
+    secondary: SecondarySettings | None = None,
+    seed: int = 0,
+    camera_hz: float = 0.0,
+    clock: Any = None,
+    control: Any = None,
+    on_tick: Callable[[int, TrialWriter], None] | None = None,
+    mode_settings: Mapping[str, Any] | None = None,
+    wrap_mode: Callable[[Any], Any] | None = None,
+    database: str = "trial.db",
+) -> tuple[TrialResult, Engine]:
+    """Run one driving trial in a fresh database ``folder / database``.
+
+    Parameters
+    ----------
+    folder : folder for the database and the recording (must exist).
+    participant : any participant (``study.participants.base.Participant``).
+    mode : registered mode name; ``mode_settings`` its keyword settings, ``wrap_mode`` a
+        function applied to the built mode (e.g. to time its ``step``).
+    scenario : shipped scenario name or TOML file.
+    phase, route, inspection, timeout_s : the trial (``tasks.primary.PrimarySettings``);
+        the trial ends when the route is driven or at ``timeout_s`` [s] of simulated time.
+    secondary : questions in the scenario's question region, or None.
+    seed : the trial's seed (world noise, questions) and the participant row's.
+    camera_hz, clock, control, on_tick : as :func:`study.trial.run_trial`.
+
+    Returns
+    -------
+    (TrialResult, Engine)
+        The engine stays open for the caller to read the rows (``engine.dispose()`` after).
+    """
+    folder = Path(folder)
+    sc = load_scenario(scenario)
+    components = derive_components(sc)
+    built = make_mode(mode, **dict(mode_settings or {}))
+    if wrap_mode is not None:
+        built = wrap_mode(built)
+    engine = open_database(folder / database)
+    with Session(engine) as s, s.begin():
+        study = Study(
+            name="standalone",
+            protocol_text="",
+            protocol_sha256="0" * 64,
+            platform_version="standalone",
+            seed=seed,
+        )
+        s.add(study)
+        s.flush()
+        person = Participant(
+            study_id=study.id,
+            code="T01",
+            kind=getattr(participant, "kind", "scripted"),
+            parameters=dict(getattr(participant, "parameters", {})),
+            order_index=0,
+            mode_order=[mode],
+            seed=seed,
+        )
+        s.add(person)
+        s.flush()
+        row = SessionRow(participant_id=person.id)
+        s.add(row)
+        s.flush()
+        person_id, session_id = person.id, row.id
+    spec = TrialSpec(
+        phase=phase,
+        ordinal=0,
+        attempt=0,
+        mode=mode,
+        seed=seed,
+        instruction="",
+        primary=PrimarySettings(route=route, inspection_required=inspection, timeout_s=timeout_s),
+        secondary=secondary,
+        camera_hz=camera_hz,
+    )
+    values = {
+        "participant_id": person_id,
+        "session_id": session_id,
+        "phase": phase,
+        "mode": mode,
+        "ordinal": 0,
+        "attempt": 0,
+        "scenario": sc.name,
+        "seed": seed,
+    }
+    with World(sc, seed=0, components=components) as world:
+        result = run_trial(
+            engine,
+            spec,
+            scene=Scene(sc.name, sc, build_grid(sc), components, world),
+            participant=participant,
+            mode=built,
+            trial_values=values,
+            recording_dir=folder,
+            recording_rel=lambda tid: f"rec/trial_{tid}.rrd",
+            session_id=session_id,
+            clock=clock,
+            control=control,
+            on_tick=on_tick,
+        )
+    return result, engine
