@@ -11,8 +11,11 @@ Decisions where the spec is silent
   ``pyplot``, so nothing global changes and figures are freed with their objects.
 - Bars are the mean with error bars of one SD (as the thesis's figures), with each
   participant's value as a dot over the bar, so the spread behind an SD is visible.
-- Paths: the analysis has no simulator access (layering), so the paths are drawn without
-  the map: x, y of the samples with equal aspect, start (circle) and end (cross) marked.
+- Paths: the analysis has no simulator access (layering); it draws the paths on the
+  occupancy map the session engine saved beside the recordings (``<recordings>/maps/
+  <scenario>.yaml`` + ``.pgm``, ROS map_server format, read by :func:`read_map`), or on
+  a blank plane when there is none (an ``asa export`` folder, a study of several
+  scenarios): x, y of the samples with equal aspect, start (circle) and end (cross).
   Long trials are thinned to at most 600 points each for the drawing only.
 - Clearance distribution: the share of ticks per 0.1 m bin from 0 to 2 m plus an overflow
   bin (the primary task's histogram bins), from the samples' ``min_clearance_m``; a trial
@@ -197,12 +200,56 @@ def clearance_figure(counts: pd.DataFrame, modes: tuple[str, ...]) -> Figure:
     return fig
 
 
-def paths_figure(samples: pd.DataFrame, trials: pd.DataFrame, modes: tuple[str, ...]) -> Figure:
-    """Every counted trial's path (x, y) in one panel per mode; start o, end x."""
+def read_map(yaml_path: str | Path) -> tuple[np.ndarray, tuple[float, float, float, float]]:
+    """A ROS map_server map as saved by the session engine: (image, extent).
+
+    Returns
+    -------
+    image : (rows, cols) uint8, row 0 the top of the map (0 occupied, 254 free).
+    extent : (x_min, x_max, y_min, y_max) [m], for ``imshow(extent=...)``.
+
+    Raises
+    ------
+    ValueError
+        Naming the file, when it is not such a map (only 8-bit binary PGM images).
+    """
+    path = Path(yaml_path)
+    fields: dict[str, str] = {}
+    for line in path.read_text(encoding="utf-8").splitlines():
+        key, sep, value = line.partition(":")
+        if sep:
+            fields[key.strip()] = value.strip()
+    try:
+        resolution = float(fields["resolution"])
+        origin = [float(v) for v in fields["origin"].strip("[]").split(",")[:2]]
+        data = (path.parent / fields["image"]).read_bytes()
+        magic, cols, rows, maxval, pixels = data.split(maxsplit=4)
+        cols, rows = int(cols), int(rows)
+        if magic != b"P5" or int(maxval) != 255 or len(pixels) < rows * cols:
+            raise ValueError("an 8-bit binary PGM (P5) image")
+        image = np.frombuffer(pixels[: rows * cols], dtype=np.uint8).reshape(rows, cols)
+    except (KeyError, ValueError, IndexError, OSError) as error:
+        raise ValueError(f"{path}: not a map saved by the session engine ({error})") from error
+    x0, y0 = origin
+    return image, (x0, x0 + cols * resolution, y0, y0 + rows * resolution)
+
+
+def paths_figure(
+    samples: pd.DataFrame,
+    trials: pd.DataFrame,
+    modes: tuple[str, ...],
+    background: tuple[np.ndarray, tuple[float, float, float, float]] | None = None,
+) -> Figure:
+    """Every counted trial's path (x, y) in one panel per mode, on the map ``background``
+    (:func:`read_map`) when given; start o, end x."""
     fig = _figure(4.0 * max(len(modes), 1), 4.0, left=0.06, bottom=0.12, wspace=0.15)
     axes = np.atleast_1d(fig.subplots(1, max(len(modes), 1), sharex=True, sharey=True))
     grouped = {int(k): g for k, g in samples.groupby("trial_id")} if len(samples) else {}
     for ax, mode in zip(axes, modes, strict=False):
+        if background is not None:
+            image, extent = background
+            ax.imshow(image, cmap="gray", vmin=0, vmax=255, extent=extent, alpha=0.6,
+                      interpolation="nearest")  # fmt: skip
         for tid in trials.loc[trials["mode"] == mode, "trial_id"].astype(int):
             g = grouped.get(tid)
             if g is None or g.empty:

@@ -258,6 +258,30 @@ def _summary_table(results: dict[str, dict], planned: tuple[str, ...]) -> pd.Dat
     return pd.DataFrame(rows)
 
 
+def _scene_map(data: StudyData, frames: Frames) -> tuple | None:
+    """The occupancy map of the main trials' scenario, saved by the session engine beside
+    the recordings (``<recordings>/maps/<scenario>.yaml``), or None: not an SQLite file,
+    several scenarios, or no map saved."""
+    source = Path(data.source)
+    trials = data.tables.get("trial")
+    if not source.is_file() or trials is None or trials.empty:
+        return None
+    main = trials[trials["id"].isin(frames.trials["trial_id"])]
+    scenarios = set(main["scenario"])
+    if len(scenarios) != 1:
+        return None
+    name = scenarios.pop()
+    for rel in main["recording_path"]:
+        if rel:
+            yaml = (source.parent / rel).parents[1] / "maps" / f"{name}.yaml"
+            if yaml.is_file():
+                try:
+                    return fig.read_map(yaml)
+                except ValueError:
+                    return None
+    return None
+
+
 def build_report(
     db: str | Path,
     out: str | Path,
@@ -375,13 +399,17 @@ def build_report(
             }
         )
     if len(samples):
+        background = _scene_map(data, frames)
         png, svg, text = fig.save(
-            fig.paths_figure(samples, frames.trials, frames.modes), out / "figures", "paths"
+            fig.paths_figure(samples, frames.trials, frames.modes, background),
+            out / "figures",
+            "paths",
         )
         written_figs += [png, svg]
         extra.append(
             {
-                "title": "Every trial's path per mode (start o, end x; map not drawn)",
+                "title": "Every trial's path per mode (start o, end x)"
+                + ("" if background is not None else "; no saved map to draw them on"),
                 "svg": Markup(text),
                 "png_name": png.name,
                 "svg_name": svg.name,

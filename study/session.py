@@ -49,6 +49,9 @@ Decisions where the spec is silent:
   trial's id: items are the subscale ids and ``pair:<a>|<b>`` in the canonical pair order
   of ``questionnaires.nasa_tlx.PAIRS`` with the chosen subscale as text. A main trial
   completed before a crash but without its questionnaire gets it on resume.
+- Maps: each scenario's occupancy grid is saved once as ``<recordings>/maps/<scenario>.pgm``
+  and ``.yaml`` (ROS map_server format), so the report draws the paths on the map without
+  importing the simulator.
 - Camera frames in recordings: 2 Hz for human participants, none otherwise (``camera_hz``
   overrides).
 """
@@ -56,7 +59,9 @@ Decisions where the spec is silent:
 from __future__ import annotations
 
 import hashlib
+import os
 import re
+import tempfile
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -70,7 +75,7 @@ from sqlalchemy.orm import Session
 from autonomy.modes import make_mode
 from questionnaires import experience as experience_q
 from questionnaires import nasa_tlx
-from sim.occupancy import build_grid
+from sim.occupancy import build_grid, save_ros_map
 from sim.scenario import load_scenario
 from sim.semantics import derive_components
 from sim.world import World
@@ -176,23 +181,38 @@ def derive_seed(*parts: int) -> int:
 
 
 class _Scenes:
-    """Scenarios, grids, components and one World per scenario, built once per session."""
+    """Scenarios, grids, components and one World per scenario, built once per session;
+    each scenario's occupancy map is saved once to ``maps`` (ROS PGM + YAML) so that the
+    analysis can draw paths on it without the simulator."""
 
-    def __init__(self) -> None:
+    def __init__(self, maps: Path | None = None) -> None:
         self._scenes: dict[str, Scene] = {}
+        self.maps = maps
 
     def get(self, source: str) -> Scene:
         if source not in self._scenes:
             scenario = load_scenario(source)
             components = derive_components(scenario)
+            grid = build_grid(scenario)
+            if self.maps is not None and not (self.maps / f"{scenario.name}.yaml").exists():
+                self._save_map(grid, scenario.name)
             self._scenes[source] = Scene(
                 name=scenario.name,
                 scenario=scenario,
-                grid=build_grid(scenario),
+                grid=grid,
                 components=components,
                 world=World(scenario, seed=0, components=components),
             )
         return self._scenes[source]
+
+    def _save_map(self, grid: Any, name: str) -> None:
+        """Write the map files atomically (parallel sessions may write the same map)."""
+        assert self.maps is not None
+        self.maps.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryDirectory(dir=self.maps, prefix=".tmp-") as tmp:
+            pgm, yaml = save_ros_map(grid, tmp, name)
+            os.replace(pgm, self.maps / pgm.name)
+            os.replace(yaml, self.maps / yaml.name)  # last: its presence means complete
 
     def close(self) -> None:
         for scene in self._scenes.values():
@@ -232,12 +252,12 @@ class _Runner:
         self.clock = clock
         self.camera_hz = camera_hz
         self.on_tick = on_tick
-        self.scenes = _Scenes()
         db_path = database_file(db)
         self.folder = db_path.parent
         self.recordings = (
             recordings if recordings is not None else self.folder / f"{db_path.stem}_recordings"
         )
+        self.scenes = _Scenes(self.recordings / "maps")
         self.trials: list[TrialSummary] = []
 
     # -------------------------------------------------------------- database helpers

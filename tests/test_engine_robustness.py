@@ -254,3 +254,6 @@ def test_same_protocol_code_and_seed_give_identical_data(tmp_path, seed):
         assert summary.status == "completed"
     a, b = _rows(tmp_path / "a.db"), _rows(tmp_path / "b.db")
     assert len(a[0]) > 100 and a == b
+    # the scenario's map is saved once beside the recordings, for the report
+    maps = sorted(p.name for p in (tmp_path / "a_recordings" / "maps").iterdir())
+    assert maps == ["practice_course.pgm", "practice_course.yaml"]
