@@ -37,9 +37,12 @@ Decisions where the spec is silent
   participant's last main trial (the protocol's ``weights = "once"``), else NaN; per subscale
   ``tlx_<id>``. A trial with incomplete ratings has NaN TLX values.
 - **Recognition accuracy** (synthetic participants only, where samples carry the true
-  intention): the share of samples with a non-empty ``true_task`` whose recognised ``label``
-  equals ``true_task`` and ``target`` equals ``true_target``; NaN for a trial whose mode
-  recognised nothing (every label empty) and for humans.
+  intention): the share of samples with a non-empty ``true_task`` whose recognised task
+  equals ``true_task`` and ``target`` equals ``true_target``. The recognised task is the
+  ``label`` translated by the trial's stored ``outcome["label_tasks"]`` (the contextual
+  mode labels ticks with its motion primitives and stores each primitive's dominant task
+  type); NaN for a trial whose mode recognises no tasks (no such table: manual, the
+  reactive mode's situations), for a trial whose mode labelled nothing, and for humans.
 - **Modes** are ordered as the protocol's ``[modes] names``, then any others in order of
   appearance; the baseline level is called ``"baseline"`` and comes last.
 """
@@ -350,8 +353,11 @@ def _tlx_scores(responses: pd.DataFrame, trial_ids: list[int], last_trial: dict)
     return pd.DataFrame(rows)
 
 
-def _sample_metrics(samples: pd.DataFrame) -> pd.DataFrame:
-    """Per trial_id: assist_share, beta_mean, clearance from samples, recognition_accuracy."""
+def _sample_metrics(
+    samples: pd.DataFrame, label_tasks: dict[int, dict[str, str]] | None = None
+) -> pd.DataFrame:
+    """Per trial_id: assist_share, beta_mean, clearance from samples, recognition_accuracy
+    (only for trials in ``label_tasks``: trial id -> {label -> task type})."""
     if samples.empty:
         return pd.DataFrame(
             columns=[
@@ -366,8 +372,13 @@ def _sample_metrics(samples: pd.DataFrame) -> pd.DataFrame:
             ]
         )
     s = samples
+    label_tasks = label_tasks or {}
     truth = s["true_task"] != ""
-    hit = (s["label"] == s["true_task"]) & (s["target"] == s["true_target"]) & truth
+    recognised = pd.Series("", index=s.index, dtype=object)
+    for tid, table in label_tasks.items():
+        rows = s["trial_id"] == tid
+        recognised[rows] = s.loc[rows, "label"].map(table).fillna("")
+    hit = (recognised == s["true_task"]) & (s["target"] == s["true_target"]) & truth
     work = pd.DataFrame(
         {
             "trial_id": s["trial_id"].astype(int),
@@ -376,7 +387,7 @@ def _sample_metrics(samples: pd.DataFrame) -> pd.DataFrame:
             "clearance": s["min_clearance_m"].astype(float),
             "truth": truth.astype(float),
             "hit": hit.astype(float),
-            "labelled": (s["label"] != "").astype(float),
+            "labelled": ((s["label"] != "") & s["trial_id"].isin(list(label_tasks))).astype(float),
         }
     )
     g = work.groupby("trial_id")
@@ -486,7 +497,12 @@ def tidy(data: StudyData) -> Frames:
 
     counted_ids = set(frame["trial_id"])
     samples = t["sample"][t["sample"]["trial_id"].isin(counted_ids)]
-    frame = frame.merge(_sample_metrics(samples), on="trial_id", how="left")
+    label_tasks = {
+        int(tid): dict(o["label_tasks"])
+        for tid, o in zip(counted["id"], counted["outcome"], strict=True)
+        if isinstance(o, dict) and isinstance(o.get("label_tasks"), dict)
+    }
+    frame = frame.merge(_sample_metrics(samples, label_tasks), on="trial_id", how="left")
     frame["clearance_mean_m"] = frame["clearance_mean_m"].fillna(frame["sample_clearance_mean_m"])
     frame["clearance_min_m"] = frame["clearance_min_m"].fillna(frame["sample_clearance_min_m"])
     frame = frame.drop(columns=["sample_clearance_mean_m", "sample_clearance_min_m"])

@@ -429,33 +429,16 @@ def run_synthetic_study(
 # ------------------------------------------------------------------------- sanity summary
 
 
-def dominant_tasks(model_path: str | Path | None = None) -> dict[str, str]:
-    """Motion-cluster name -> its dominant contextual task type, from the model's
-    metadata (``clusters[].task_share``); empty if the model has none or cannot be read."""
-    from autonomy.model import load_model
-
-    try:
-        model = load_model(model_path)
-    except (ValueError, FileNotFoundError):  # no readable model: nothing to score against
-        return {}
-    out: dict[str, str] = {}
-    for c in model.metadata.get("clusters", []):
-        shares = c.get("task_share") or {}
-        if shares:
-            out[str(c.get("name", ""))] = max(shares, key=shares.get)
-    return out
-
-
 def sanity_summary(db: str | Path, *, phase: str = "main") -> dict[str, dict[str, Any]]:
     """Per mode over the ``phase`` trials: trials, completion rate, mean collisions and
     score; for modes with task recognition, the share of ticks with a true task whose
-    recognised task (the cluster's dominant type) and target both match it
+    recognised task (the label translated by the trial's stored ``label_tasks``: a motion
+    primitive's dominant task type) and target both match it
     (``recognition_match``) and whose task alone matches (``task_match``).
 
     A summary for people (printed by ``asa pilot``), not a test.
     """
     engine = open_database(db, create=False)
-    tasks: dict[str, str] | None = None
     out: dict[str, dict[str, Any]] = {}
     try:
         with engine.connect() as conn:
@@ -478,13 +461,16 @@ def sanity_summary(db: str | Path, *, phase: str = "main") -> dict[str, dict[str
                     st.c.trial_id.in_(ids), st.c.true_task != ""
                 )
                 labelled = conn.execute(q).all()
-                if tasks is None:
-                    tasks = dominant_tasks()
-                # only modes that label ticks with motion clusters (not situations)
-                if any(label in tasks for label, *_ in labelled):
+                # what the labels mean, as the trial loop stored it (modes whose labels
+                # are situations, not task types, store nothing and are not scored)
+                tasks: dict[str, str] = {}
+                for r in rows:
+                    outcome = r["outcome"] if isinstance(r["outcome"], dict) else {}
+                    tasks.update(outcome.get("label_tasks") or {})
+                if tasks and labelled:
                     both = task_only = 0
                     for label, target, true_task, true_target in labelled:
-                        same = tasks.get(label, label) == true_task
+                        same = tasks.get(label) == true_task
                         task_only += same
                         both += same and target == true_target
                     entry["task_match"] = task_only / len(labelled)

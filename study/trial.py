@@ -37,6 +37,9 @@ Decisions where the spec is silent:
   the trial row is written.
 - After the completing transaction the participant's optional ``end_trial(outcome)`` is
   called (a synthetic participant rates the trial from it).
+- A mode whose labels stand for contextual task types (``label_tasks() -> {label: task
+  type}``, the contextual mode's motion primitives) has that table stored in
+  ``trial.outcome["label_tasks"]``, so the analysis scores recognition from the data alone.
 - Before ``begin_trial`` the participant's optional ``attach(world, event)`` is called with
   the trial's World (read only: the screen renders the camera from ``true_pose()`` and
   counts ``contacts()``) and ``event(t, kind, **detail)``, which buffers an event row of
@@ -693,6 +696,9 @@ def run_trial(
         )
         if max_collisions is not None:
             outcome["passed"] = bool(po.completed and po.collisions <= max_collisions)
+    label_tasks = getattr(mode, "label_tasks", None)
+    if callable(label_tasks):  # what the mode's labels mean, for scoring its recognition
+        outcome["label_tasks"] = dict(label_tasks())
     if secondary is not None:
         outcome["secondary"] = _jsonable(summarise(sec_events))
     if status == "aborted":

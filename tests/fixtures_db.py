@@ -45,6 +45,10 @@ from study.storage import (
 MODES: tuple[str, ...] = ("manual", "reactive_bn", "contextual_task")
 TASKS: tuple[str, ...] = ("doorway", "inspection", "docking")
 TARGETS: dict[str, str] = {"doorway": "door_1", "inspection": "red_cylinder", "docking": "table"}
+# the contextual mode labels ticks with motion primitives and stores what each stands for
+PRIMITIVES: dict[str, str] = {"doorway": "primitive_0", "inspection": "primitive_1",
+                              "docking": "primitive_2"}  # fmt: skip
+LABEL_TASKS: dict[str, str] = {v: k for k, v in PRIMITIVES.items()}
 START = np.array([1.0, 1.0])
 DOCK = np.array([8.0, 6.0])
 
@@ -235,11 +239,12 @@ def _main_trial(s, rng, cfg, person, session, ordinal, mode, *, attempt, aborted
     true_task, true_target = _intentions(n)
     if mode == "contextual_task":
         hit = rng.random(n) < cfg.recognition
-        label = [
+        tasks = [
             tt if h else ("doorway" if tt != "doorway" else "docking")
             for tt, h in zip(true_task, hit, strict=True)
         ]
-        target = [TARGETS[lb] for lb in label]
+        label = [PRIMITIVES[tk] for tk in tasks]
+        target = [TARGETS[tk] for tk in tasks]
     elif mode == "reactive_bn":
         label = ["narrow" if c < 0.3 else "open" for c in clearance]
         target = [""] * n
@@ -300,6 +305,8 @@ def _main_trial(s, rng, cfg, person, session, ordinal, mode, *, attempt, aborted
         "inspection_required": True,
         "inspection_done": True,
     }
+    if mode == "contextual_task":
+        trial.outcome["label_tasks"] = dict(LABEL_TASKS)
     qs = _questions(
         rng,
         trial.id,

@@ -5,6 +5,7 @@ the CSV export giving the same frames, and the bad-input errors."""
 
 from __future__ import annotations
 
+import json
 import os
 import sqlite3
 import sys
@@ -84,9 +85,10 @@ def test_one_trial_by_hand(study_db, frames, seed):
             ),
             strict=True,
         )
-        time_s, coll = con.execute(
-            "select completion_time_s, collisions from trial where id = ?", (tid,)
+        time_s, coll, outcome = con.execute(
+            "select completion_time_s, collisions, outcome from trial where id = ?", (tid,)
         ).fetchone()
+        label_tasks = json.loads(outcome).get("label_tasks")
         qs = con.execute(
             "select correct, answer_time_s, response from question where trial_id = ?", (tid,)
         ).fetchall()
@@ -111,10 +113,10 @@ def test_one_trial_by_hand(study_db, frames, seed):
     assert row["score_s"] == pytest.approx(time_s + 60.0 * coll)
     has_truth = [tt != "" for tt in truth]
     hits = [
-        h and lb == tt and tg == tt2
+        h and (label_tasks or {}).get(lb) == tt and tg == tt2
         for h, lb, tt, tg, tt2 in zip(has_truth, label, truth, target, ttarget, strict=True)
     ]
-    if any(lb != "" for lb in label):
+    if label_tasks and any(lb != "" for lb in label):
         assert row["recognition_accuracy"] == pytest.approx(sum(hits) / sum(has_truth))
     else:
         assert np.isnan(row["recognition_accuracy"])
@@ -155,6 +157,8 @@ def test_long_frame_levels(frames):
     # manual control recognises nothing: its level is left out
     rec = long_frame(frames, "recognition_accuracy")
     assert "manual" not in set(rec["mode"])
+    # the reactive mode's situation labels are no task types: not scored either
+    assert set(rec["mode"]) == {"contextual_task"}
     planned = ("tlx_raw", "collisions")
     assert [m.name for m in ordered_metrics(planned)[:2]] == list(planned)
     assert len(ordered_metrics(planned)) == len(METRICS)
