@@ -41,7 +41,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "Repeated-measures ANOVA, sphericity and LSD for any long CSV.",
     ),
     "replay": ("study.cli.replay:replay", "Open a trial's rerun recording, or --print it."),
-    "run": ("study.cli.run:run", "Run one participant's session of a protocol (headless)."),
+    "run": ("study.cli.run:run", "One participant's session: a person, scripted or synthetic."),
     "db": ("study.cli.db:db", "Study database tools: check integrity and consistency."),
     "export": ("study.cli.export:export_command", "Write one CSV per database table."),
     "report": (
