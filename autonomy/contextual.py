@@ -78,6 +78,19 @@ Decisions where the spec is silent:
   also falls back to manual control.
 - The local GMM's variance floor is relative to the primitive's data scale
   (``1e-3 *`` the column variance of its GMR points, as :mod:`autonomy.gmr`).
+- Per-tick cost (a synthetic study runs some 15k ticks per participant on 2 cores). The
+  outputs are those of the plain formulation (``tests/test_contextual_equivalence.py``
+  keeps it and compares: equal to 1e-12, the EM fits bit for bit), computed with less
+  overhead: all target points in one call where the components offer
+  ``target_points()`` (``sim.semantics.RobotFrameComponents``, found by duck typing;
+  a plain sequence is asked component by component), and nothing read from the
+  components on ticks without input; the recogniser's kernels of all clusters in a few
+  batched operations over the stacked (zero-padded) basis vectors; the local EM with
+  direct ufunc reductions and ``numpy.dot`` (the same arithmetic); the GMR prediction in
+  scalar arithmetic with the fit's per-component constants cached with it; the
+  rollout's Mahalanobis map folded into one (7, 8) matrix per cluster. Measured on a
+  scripted ``cluttered_room`` trial, a cold cache's local EM fits (a new neighbour set
+  for about half the GMR queries, some 100-150 us each) remain the largest share.
 """
 
 from __future__ import annotations
@@ -156,26 +169,38 @@ class Recogniser:
     classifier (``SOGPClassifier.to_dict()``; the GPs' ``Q`` is not needed).
 
     Equivalent to :func:`autonomy.sogp_classifier.recognise`, but computes the predictive
-    variance only for the winning candidate and cluster.
+    variance only for the winning candidate and cluster. The clusters' basis vectors are
+    stacked at load time (zero-padded to the largest basis, padded rows with ``alpha = 0``
+    and zero rows and columns of ``C``, which add exact zeros), so one tick evaluates the
+    kernels of all clusters in a few batched array operations.
     """
 
     def __init__(self, sogp: dict[str, Any]) -> None:
         self.classes_ = np.asarray(sogp["classes"]).copy()
-        self.gps_ = []
-        for gp in sogp["models"]:
+        models = list(sogp["models"])
+        c = len(models)
+        b = max((len(gp["alpha"]) for gp in models), default=0)
+        d = int(np.asarray(models[0]["length_scales"]).size) if c else 0
+        self.ls_ = np.ones((c, 1, d))  # (c, 1, d) length scales
+        self.xs_ = np.zeros((c, b, d))  # (c, b, d) basis / length scales
+        self.xs2_ = np.zeros((c, b, 1))  # (c, b, 1) squared norms of xs_
+        self.alpha_ = np.zeros((c, 1, b))  # (c, 1, b)
+        self.C_ = []  # per cluster (b_j, b_j)
+        self.n_basis_ = []
+        self.sf2_ = np.zeros((c, 1, 1))
+        self.noise_ = np.zeros(c)
+        for j, gp in enumerate(models):
             ls = np.asarray(gp["length_scales"], dtype=float)
             xs = np.asarray(gp["basis"], dtype=float) / ls
-            self.gps_.append(
-                (
-                    xs,
-                    (xs * xs).sum(axis=1),
-                    np.asarray(gp["alpha"], dtype=float),
-                    np.asarray(gp["C"], dtype=float),
-                    float(gp["signal_var"]),
-                    float(gp["noise_var"]),
-                    ls,
-                )
-            )
+            n = len(xs)
+            self.ls_[j, 0] = ls
+            self.xs_[j, :n] = xs
+            self.xs2_[j, :n, 0] = (xs * xs).sum(axis=1)
+            self.alpha_[j, 0, :n] = np.asarray(gp["alpha"], dtype=float)
+            self.C_.append(np.asarray(gp["C"], dtype=float))
+            self.n_basis_.append(n)
+            self.sf2_[j] = float(gp["signal_var"])
+            self.noise_[j] = float(gp["noise_var"])
 
     def __call__(self, Z: np.ndarray) -> tuple[int, int, float, np.ndarray]:
         """Recognise over the rows of ``Z`` (m, d), standardised encoded features.
@@ -193,21 +218,20 @@ class Recogniser:
             (m, c) posterior means (5.6).
         """
         Z = np.atleast_2d(np.asarray(Z, dtype=float))
-        m, c = Z.shape[0], len(self.gps_)
-        mean = np.empty((m, c))
-        kernels = []
-        for j, (xs, xs2, alpha, _, sf2, _, ls) in enumerate(self.gps_):
-            a = Z / ls
-            sq = xs2[:, None] + (a * a).sum(axis=1)[None, :] - 2.0 * (xs @ a.T)
-            K = sf2 * np.exp(-0.5 * np.maximum(sq, 0.0))  # (b, m), Eq. (5.7)
-            mean[:, j] = alpha @ K  # Eq. (5.6)
-            kernels.append(K)
+        a = Z / self.ls_  # (c, m, d)
+        sq = self.xs2_ + (a * a).sum(axis=2)[:, None, :]
+        sq -= 2.0 * (self.xs_ @ a.transpose(0, 2, 1))  # (c, b, m)
+        np.maximum(sq, 0.0, out=sq)
+        sq *= -0.5
+        K = np.exp(sq, out=sq)
+        K *= self.sf2_  # Eq. (5.7)
+        mean = (self.alpha_ @ K)[:, 0, :].T  # (m, c), Eq. (5.6)
         i, j = argmax_finite(mean)  # Eq. (5.8), never a non-finite score
         if i < 0:
             return -1, -1, 0.0, mean
-        _, _, _, C, sf2, noise, _ = self.gps_[j]
-        k = kernels[j][:, i]
-        var = max(sf2 + float(k @ (C @ k)), 0.0) + noise  # Eq. (5.9), clamped
+        k = K[j, : self.n_basis_[j], i]
+        sf2 = float(self.sf2_[j, 0, 0])
+        var = max(sf2 + float(k @ (self.C_[j] @ k)), 0.0) + float(self.noise_[j])  # Eq. (5.9)
         beta = float(ndtr(mean[i, j] / math.sqrt(var)))  # Eq. (5.10)
         if not math.isfinite(beta):
             beta = 0.0
@@ -235,31 +259,45 @@ def local_gmm(local: np.ndarray, *, iters: int, reg: float = 1e-3, scale: np.nda
     -------
     weights : (K,), means : (K, D), variances : (K, D) with K = 2, or 1 when all points
     coincide.
+
+    Notes
+    -----
+    Speed (this runs for every new neighbour set of a rollout): the reductions call the
+    ufuncs' ``reduce`` directly (the array methods' wrappers cost more than the sums of
+    10 x 5 numbers), with the same arithmetic, so the fit is bit for bit that of the plain
+    formulation.
     """
     k = local.shape[0]
+    add = np.add.reduce
     floor = reg * (data_scale(local) if scale is None else scale)
-    centre = local.mean(axis=0)
-    first = int(np.argmin(((local - centre) ** 2).sum(axis=1)))
-    d2 = ((local - local[first]) ** 2).sum(axis=1)
-    second = int(np.argmax(d2))
+    centre = add(local, axis=0) / k  # = local.mean(axis=0)
+    first = int(add((local - centre) ** 2, axis=1).argmin())
+    d2 = add((local - local[first]) ** 2, axis=1)
+    second = int(d2.argmax())
+    dev = local - add(local, axis=0, keepdims=True) / k
+    var0 = add(dev * dev, axis=0) / k  # = local.var(axis=0)
     if not d2[second] > 0:
-        return np.ones(1), centre[None, :], (local.var(axis=0) + floor)[None, :]
-    mu = local[[first, second]].copy()
-    var = np.tile(local.var(axis=0) + floor, (2, 1))
-    log_w = np.full(2, -math.log(2.0))
+        return np.ones(1), centre[None, :], (var0 + floor)[None, :]
+    mu = local[[first, second]]
+    var = np.empty((2, local.shape[1]))
+    var[:] = var0 + floor
+    log_w = np.array((-math.log(2.0), -math.log(2.0)))
     sq = local * local
+    dot = np.dot  # = @ for these 2-D arrays (the same BLAS product), less call overhead
     for _ in range(iters):
         prec = 1.0 / var
         # E step: log pi_c + log N(x; mu_c, diag var_c) up to a constant, (k, 2)
-        logp = (local @ (mu * prec).T - 0.5 * (sq @ prec.T)) + (
-            log_w - 0.5 * ((mu * mu * prec).sum(axis=1) + np.log(var).sum(axis=1))
+        logp = (dot(local, (mu * prec).T) - 0.5 * dot(sq, prec.T)) + (
+            log_w - 0.5 * (add(mu * mu * prec, axis=1) + add(np.log(var), axis=1))
         )
-        r = np.exp(logp - logp.max(axis=1, keepdims=True))
-        r /= r.sum(axis=1, keepdims=True)
-        nk = r.sum(axis=0) + 1e-12  # M step
+        # the max and the sum over the 2 components as one elementwise operation each
+        r = np.exp(logp - np.maximum(logp[:, :1], logp[:, 1:]))
+        r /= r[:, :1] + r[:, 1:]
+        nk = add(r, axis=0) + 1e-12  # M step
         log_w = np.log(nk / k)
-        mu = (r.T @ local) / nk[:, None]
-        var = np.maximum((r.T @ sq) / nk[:, None] - mu * mu, 0.0) + floor
+        rt, nkc = r.T, nk[:, None]
+        mu = dot(rt, local) / nkc
+        var = np.maximum(dot(rt, sq) / nkc - mu * mu, 0.0) + floor
     w = np.exp(log_w)
     return w, mu, var
 
@@ -287,20 +325,30 @@ class LocalGMR:
         self.iters = int(iters)
         self.cache_size = int(cache_size)
         self.cache_: dict[bytes, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = {}
+        self.terms_: dict[bytes, tuple[tuple[float, ...], ...]] = {}
 
-    def fit_local(self, x: np.ndarray):
-        """The local mixture for query ``x`` (2,): (weights, means, variances)."""
+    def _key(self, x: Any) -> bytes:
         _, idx = self.tree_.query(x, k=self.k)  # Alg. 2: nearest neighbours
-        idx = np.sort(np.atleast_1d(idx))
-        key = idx.tobytes()
+        if self.k == 1:
+            idx = np.atleast_1d(np.asarray(idx, dtype=np.intp))
+        idx.sort()
+        return idx.tobytes()
+
+    def _fit(self, key: bytes):
         fit = self.cache_.get(key)
         if fit is None:
+            idx = np.frombuffer(key, dtype=np.intp)
             w, mu, var = local_gmm(self.points_[idx], iters=self.iters, scale=self.scale_)
             fit = (np.log(w), mu[:, :2], var[:, :2], mu[:, 2:])
             if len(self.cache_) >= self.cache_size:
                 self.cache_.clear()
+                self.terms_.clear()
             self.cache_[key] = fit
         return fit
+
+    def fit_local(self, x: np.ndarray):
+        """The local mixture for query ``x`` (2,): (weights, means, variances)."""
+        return self._fit(self._key(x))
 
     def predict(self, x: np.ndarray) -> np.ndarray:
         """Predicted output ``u*`` (3,) for the input ``s*`` (2,) [m] (Eqs. 4.5-4.8)."""
@@ -309,6 +357,44 @@ class LocalGMR:
         logp = log_w - 0.5 * ((diff * diff / var_x).sum(axis=1) + np.log(var_x).sum(axis=1))
         h = np.exp(logp - logp.max())  # Eqs. (4.6), (4.7)
         return (h @ mu_y) / h.sum()  # Eq. (4.8), diagonal: mu_y|x = mu_y
+
+    def predict_xy(self, sx: float, sy: float) -> tuple[float, float, float]:
+        """:meth:`predict` for the input ``(sx, sy)`` [m] in scalar arithmetic (the
+        rollout's inner loop): the same Eqs. (4.5)-(4.8), per-component constants
+        cached with the local fit."""
+        key = self._key((sx, sy))
+        terms = self.terms_.get(key)
+        if terms is None:
+            log_w, mu_x, var_x, mu_y = self._fit(key)
+            log_det = np.log(var_x).sum(axis=1)
+            terms = tuple(
+                (
+                    float(log_w[c]),
+                    float(mu_x[c, 0]),
+                    float(mu_x[c, 1]),
+                    float(var_x[c, 0]),
+                    float(var_x[c, 1]),
+                    float(log_det[c]),
+                    float(mu_y[c, 0]),
+                    float(mu_y[c, 1]),
+                    float(mu_y[c, 2]),
+                )
+                for c in range(len(log_w))
+            )
+            self.terms_[key] = terms
+        logps = []
+        for lw, mx, my, vx, vy, ld, *_ in terms:
+            dx, dy = sx - mx, sy - my
+            logps.append(lw - 0.5 * ((dx * dx / vx + dy * dy / vy) + ld))
+        top = max(logps)
+        h_sum = o0 = o1 = o2 = 0.0
+        for lp, term in zip(logps, terms, strict=True):
+            h = math.exp(lp - top)  # Eqs. (4.6), (4.7)
+            h_sum += h
+            o0 += h * term[6]
+            o1 += h * term[7]
+            o2 += h * term[8]
+        return o0 / h_sum, o1 / h_sum, o2 / h_sum  # Eq. (4.8)
 
 
 # --------------------------------------------------------------------------- rollout
@@ -324,6 +410,9 @@ class Runtime:
     whiten: np.ndarray  # (c, 7, 7) L^-1 with L L^T the primitive's covariance
     row: dict[int, int]  # cluster id -> row of the per-cluster arrays
     names: tuple[str, ...]
+    # the Mahalanobis map of raw encoded features: e = whiten_scaled[j] @ z - whiten_offset[j]
+    whiten_scaled: np.ndarray  # (c, 7, 7) whiten / the scaler's scale_
+    whiten_offset: np.ndarray  # (c, 7) whiten @ (mean_ / scale_ + cluster mean)
 
 
 def build_runtime(model: ContextualModel, settings: ContextualSettings) -> Runtime:
@@ -335,6 +424,7 @@ def build_runtime(model: ContextualModel, settings: ContextualSettings) -> Runti
         LocalGMR(model.cluster_points(j), k=settings.gmr_k, iters=settings.em_iters)
         for j in range(model.n_clusters)
     )
+    scaler = model.scaler
     return Runtime(
         model=model,
         recogniser=Recogniser(model.sogp),
@@ -342,6 +432,10 @@ def build_runtime(model: ContextualModel, settings: ContextualSettings) -> Runti
         whiten=whiten,
         row={int(c): j for j, c in enumerate(model.cluster_ids)},
         names=model.cluster_names(),
+        whiten_scaled=whiten / scaler.scale_[None, None, :],
+        whiten_offset=np.einsum(
+            "cij,cj->ci", whiten, scaler.mean_ / scaler.scale_ + model.cluster_means
+        ),
     )
 
 
@@ -357,6 +451,11 @@ def _target_from(
         dx, dy = float(s0[0]) - x, float(s0[1]) - y
     c, s = math.cos(yaw), math.sin(yaw)
     return c * dx + s * dy, -s * dx + c * dy
+
+
+def _clip1(value: float) -> float:
+    """``value`` clipped to [-1, 1] (NaN stays NaN, as with ``numpy.clip``)."""
+    return -1.0 if value < -1.0 else (1.0 if value > 1.0 else value)
 
 
 def rollout(
@@ -390,45 +489,61 @@ def rollout(
     """
     j = runtime.row[int(cluster)]
     gmr = runtime.gmrs[j]
-    W = runtime.whiten[j]
-    mean = runtime.model.cluster_means[j]
-    smean = runtime.model.scaler.mean_
-    sscale = runtime.model.scaler.scale_
+    # e = W ((z - mean_) / scale_ - mu) = [W / scale_, -offset] (z, 1), one product a step
+    A = np.concatenate((runtime.whiten_scaled[j], -runtime.whiten_offset[j][:, None]), axis=1)
+    dot = np.dot
     kind = getattr(component, "kind", "")
     pts = np.asarray(getattr(component, "points", np.zeros((0, 2))), dtype=float).reshape(-1, 2)
     points = pts if kind in ("object", "wall") and len(pts) else None
-    s0 = np.asarray(component.target_point(), dtype=float)
-    limit = np.array([robot.max_speed, robot.max_speed, robot.max_yaw_rate])
+    if points is None:
+        s0 = np.asarray(component.target_point(), dtype=float)
+        s0x, s0y = float(s0[0]), float(s0[1])
+    else:
+        d = np.empty_like(points)
+        d2 = np.empty(len(points))
+        here = np.empty(2)
+    lim_v, lim_w = float(robot.max_speed), float(robot.max_yaw_rate)
     dt = settings.dt
     stop = settings.mahalanobis_stop
+    cos, sin, atan2, hypot, sqrt = math.cos, math.sin, math.atan2, math.hypot, math.sqrt
     x = y = yaw = 0.0
     path = []
     dists = []
-    z = np.empty(7)
+    z = np.ones(8)  # (s*, |u| cos, |u| sin, u*, 1)
     every = settings.gmr_every
     ux = uy = uw = 0.0
     for step in range(settings.rollout_steps):
-        sx, sy = _target_from(kind, points, s0, x, y, yaw)  # Alg. 3, line 9
+        # Alg. 3, line 9: s* seen from the rolled-out pose
+        if points is not None:
+            here[0], here[1] = x, y
+            np.subtract(points, here, out=d)
+            i = int(np.einsum("ij,ij->i", d, d, out=d2).argmin())
+            dx, dy = float(d[i, 0]), float(d[i, 1])
+        else:
+            dx, dy = s0x - x, s0y - y
+        c, s = cos(yaw), sin(yaw)
+        sx, sy = c * dx + s * dy, -s * dx + c * dy
         if step % every == 0:
-            u = np.clip(gmr.predict(np.array([sx, sy])), -1.0, 1.0)  # line 10
-            ux, uy, uw = float(u[0]), float(u[1]), float(u[2])
+            ux, uy, uw = gmr.predict_xy(sx, sy)  # line 10
+            ux, uy, uw = _clip1(ux), _clip1(uy), _clip1(uw)
+            speed = hypot(ux, uy)
+            heading = atan2(uy, ux)
+            vx, vy, w = ux * lim_v, uy * lim_v, uw * lim_w
         # line 11: q_est = (s*, theta*, u*), encoded as autonomy.features.encode does:
         # |u_xy| (cos theta, sin theta), (0, 0) without translational input
-        speed = math.hypot(ux, uy)
-        if speed >= 1e-6 and math.hypot(sx, sy) >= 1e-9:
-            theta = math.atan2(uy, ux) - math.atan2(sy, sx)
-            ct, st = speed * math.cos(theta), speed * math.sin(theta)
+        if speed >= 1e-6 and hypot(sx, sy) >= 1e-9:
+            theta = heading - atan2(sy, sx)
+            ct, st = speed * cos(theta), speed * sin(theta)
         else:
             ct, st = speed, 0.0
-        z[:] = (sx, sy, ct, st, ux, uy, uw)
-        e = W @ ((z - smean) / sscale - mean)
-        d = math.sqrt(float(e @ e))  # line 12, Eq. (6.3)
-        dists.append(d)
-        if d > stop:
+        z[0], z[1], z[2], z[3], z[4], z[5], z[6] = sx, sy, ct, st, ux, uy, uw
+        e = dot(A, z)
+        dist = sqrt(float(dot(e, e)))  # line 12, Eq. (6.3)
+        dists.append(dist)
+        if dist > stop:
             break
-        vx, vy, w = ux * limit[0], uy * limit[1], uw * limit[2]
         mid = yaw + 0.5 * w * dt  # line 14: holonomic kinematics, mid-step heading
-        c, s = math.cos(mid), math.sin(mid)
+        c, s = cos(mid), sin(mid)
         x += (c * vx - s * vy) * dt
         y += (s * vx + c * vy) * dt
         yaw += w * dt
@@ -482,6 +597,20 @@ class ContextualTaskMode:
     def reset(self, robot: RobotModel) -> None:
         self.robot_ = robot
 
+    def label_tasks(self) -> dict[str, str]:
+        """Motion primitive (``Assist.label``) -> its dominant contextual task type in the
+        demonstrations it was learned from (the model's ``clusters[].task_share``, kept for
+        reporting only); empty without a model. The trial loop stores it so that the
+        recognition can be scored against a synthetic participant's true intention."""
+        if self.runtime_ is None:
+            return {}
+        out: dict[str, str] = {}
+        for cluster in self.runtime_.model.metadata.get("clusters", []):
+            shares = cluster.get("task_share") or {}
+            if shares:
+                out[str(cluster["name"])] = max(shares, key=shares.get)
+        return out
+
     def _manual(self, u: np.ndarray, points: np.ndarray, start: float, t_rec: float) -> Assist:
         robot = self.robot_
         v, _ = safe_command(u, points, robot, horizon_s=self.settings.safety_horizon_s)
@@ -516,14 +645,22 @@ class ContextualTaskMode:
         s, robot, rt = self.settings, self.robot_, self.runtime_
         u = np.array(u, dtype=float).reshape(3)
         points = np.asarray(obs.points, dtype=float).reshape(-1, 2)
-        components = tuple(getattr(obs, "components", ()) or ())
+        components = getattr(obs, "components", None)
+        if components is None:
+            components = ()
         limit = np.array([robot.max_speed, robot.max_speed, robot.max_yaw_rate])
         u_norm = u / limit
-        if rt is None or not components or math.hypot(u_norm[0], u_norm[1]) < s.min_input:
+        if rt is None or not len(components) or math.hypot(u_norm[0], u_norm[1]) < s.min_input:
             return self._manual(u, points, start, time.perf_counter())
 
-        # 1. candidates: the nearest components by target point
-        targets = np.array([np.asarray(c.target_point(), dtype=float) for c in components])
+        # 1. candidates: the nearest components by target point (all target points in one
+        # call where the sequence offers it: sim.semantics.RobotFrameComponents)
+        many = getattr(components, "target_points", None)
+        if callable(many):
+            targets = np.asarray(many(), dtype=float).reshape(-1, 2)
+        else:
+            components = tuple(components)
+            targets = np.array([np.asarray(c.target_point(), dtype=float) for c in components])
         order = np.argsort(np.einsum("ij,ij->i", targets, targets), kind="stable")
         chosen = order[: s.candidates]
         # 2. q* per candidate, encoded and standardised

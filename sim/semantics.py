@@ -761,6 +761,15 @@ class RobotFrameComponents(Sequence[SemanticComponent]):
             self._seen = in_robot_frame(self._map, self._pose)
         return self._seen
 
+    def target_points(self) -> np.ndarray:
+        """Every component's intentional target point ``s`` (n, 2) [m] in the robot frame.
+
+        Equal to ``np.array([c.target_point() for c in self])`` (the module's
+        :func:`target_points`, a few vector operations); for the contextual mode, which
+        may not import ``sim`` and finds this method by duck typing.
+        """
+        return target_points(self.materialise())
+
     def __len__(self) -> int:
         return len(self._map)
 

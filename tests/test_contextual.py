@@ -290,3 +290,26 @@ def test_non_finite_scores_never_win(model, rng):
     assist = m.step(empty_observation([doorway("d", (1.5, 0.2))]), u)
     assert assist.beta == 0.0 and assist.target == ""
     np.testing.assert_array_equal(assist.v, u)
+
+
+def test_scalar_gmr_prediction_equals_the_array_one(rng):
+    data = np.column_stack((rng.uniform(-2, 2, (200, 2)), rng.normal(size=(200, 3))))
+    for k in (1, 2, 10):
+        local = LocalGMR(data, k=k, iters=5)
+        for _ in range(20):
+            x = rng.uniform(-2.5, 2.5, 2)
+            got = local.predict_xy(float(x[0]), float(x[1]))
+            np.testing.assert_allclose(got, local.predict(x), rtol=1e-13, atol=1e-13)
+    dup = LocalGMR(np.ones((12, 5)), k=10, iters=5)  # one component: all points coincide
+    np.testing.assert_allclose(dup.predict_xy(0.3, -0.2), np.ones(3))
+
+
+def test_label_tasks_name_each_primitive_by_its_dominant_task_type():
+    from autonomy.modes import make_mode
+    from tasks.contextual import DEMONSTRATED
+
+    mode = make_mode("contextual_task")
+    table = mode.label_tasks()
+    names = set(mode.runtime_.names)
+    assert set(table) == names and set(table.values()) <= set(DEMONSTRATED)
+    assert make_mode("contextual_task", model_path="").label_tasks() == {}

@@ -496,3 +496,17 @@ def test_target_points_equal_each_components_own(rng):
                 np.hypot(want[:, 0], want[:, 1]), target_distances(seen), rtol=1e-12
             )
     assert target_points(()).shape == (0, 2)
+
+
+def test_robot_frame_components_offer_their_target_points(rng):
+    from sim.semantics import RobotFrameComponents
+
+    comps = derive_components(load_scenario("cluttered_room"))
+    for _ in range(4):
+        pose = Pose2D(*rng.uniform(-1.0, 12.0, 2), float(rng.uniform(-math.pi, math.pi)))
+        lazy = RobotFrameComponents(comps, pose)
+        want = np.array([c.target_point() for c in in_robot_frame(comps, pose)])
+        got = lazy.target_points()
+        assert got.shape == (len(comps), 2)
+        np.testing.assert_array_equal(got, want)  # bit for bit, ties: the first point
+    assert RobotFrameComponents((), Pose2D(0.0, 0.0, 0.0)).target_points().shape == (0, 2)

@@ -25,7 +25,9 @@ Figures (wall time, BLAS limited to one thread):
   doorways, objects and walls added), with the shipped model (``contextual_model``:
   "shipped", or "synthetic" -- a small model trained on
   :func:`autonomy.training.synthetic_demonstrations` -- when it is missing);
-  ``rollout_ms`` {p50, p95}: the rollout alone, from the same ticks' timings.
+  ``rollout_ms`` {p50, p95}: the rollout alone, from the same ticks' timings;
+  ``contextual_stage_ms``: the mean of each stage of ``Assist.timings_ms`` (recognition
+  including the candidates, rollout, tracking, safety, total) over the same ticks.
 
 The synthetic room helpers (:func:`cluttered_segments`, :func:`synthetic_observation`)
 are exact 2D ray casting in numpy; the tests of the assistance layer use them too.
@@ -325,6 +327,7 @@ def _contextual_figures(observations: list, robot: RobotModel, n: int) -> dict:
             obs = dataclasses.replace(obs, components=comps + extra)
         prepared.append((obs, u))
     tick, roll, assisted = [], [], 0
+    stages: dict[str, list[float]] = {}
     repeats = max(1, n // len(prepared))
     for k in range(repeats * len(prepared)):
         obs, u = prepared[k % len(prepared)]
@@ -332,6 +335,8 @@ def _contextual_figures(observations: list, robot: RobotModel, n: int) -> dict:
         assist = mode.step(obs, u)
         tick.append((time.perf_counter() - start) * 1e3)
         roll.append(assist.timings_ms["rollout"])
+        for stage, ms in assist.timings_ms.items():
+            stages.setdefault(stage, []).append(ms)
         assisted += assist.target != ""  # below min_input the mode does not recognise
     return {
         "contextual_tick_ms": {
@@ -339,6 +344,7 @@ def _contextual_figures(observations: list, robot: RobotModel, n: int) -> dict:
             "candidates": CONTEXTUAL_CANDIDATES,
         },
         "rollout_ms": _percentiles(roll, (50, 95)),
+        "contextual_stage_ms": {k: round(float(np.mean(v)), 4) for k, v in stages.items()},
         "contextual_recognised_share": round(assisted / max(len(tick), 1), 3),
         "contextual_model": which,
     }
