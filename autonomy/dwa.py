@@ -49,6 +49,7 @@ import numpy as np
 from autonomy.safety import (
     arc_poses,
     footprint_clearance,
+    inflated_radius,
     interval_clearance,
     required_clearance,
     sweep_rate,
@@ -180,7 +181,7 @@ def dwa(
     n = len(samples)
     speed = np.hypot(samples[:, 0], samples[:, 1])
     margin = robot.protective_margin
-    radius = robot.inflated_radius(margin)
+    radius = inflated_radius(robot, margin)
     points = np.asarray(points, dtype=float).reshape(-1, 2)
     sq = np.einsum("ij,ij->i", points, points)
 
@@ -198,7 +199,7 @@ def dwa(
     n_look = max(1, math.ceil(st.horizon_s / st.score_step_s - 1e-9))
     look = arc_poses(samples, st.score_step_s * np.arange(1, n_look + 1))
     cap = st.clearance_cap_m
-    reach = speed.max() * st.score_step_s * n_look + robot.inflated_radius(max(margin, cap))
+    reach = speed.max() * st.score_step_s * n_look + inflated_radius(robot, max(margin, cap))
     coarse = thin_points(points[sq <= reach * reach], st.score_cell_m)
     h_look = footprint_clearance(look.reshape(-1, 3), coarse, robot).reshape(n, n_look)
     scale = np.array([2 * robot.max_speed, 2 * robot.max_speed, 2 * robot.max_yaw_rate])

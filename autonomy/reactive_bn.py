@@ -51,6 +51,12 @@ Decisions where the thesis is silent (documented choices):
   protection is OA and GOA themselves.
 - Reactive: :meth:`ReactiveBNMode.step` keeps no state between ticks; only the
   zone's geometry is derived in :meth:`~ReactiveBNMode.reset`.
+- Per-tick cost: which beam of a scanner is nearest each zone cell, whether the cell
+  is in its field of view and how far it is depend only on the scanner's mount and
+  beam angles, so :func:`cell_states` derives them once per scanner and keeps them on
+  the :class:`SectorGrid` (keyed by the exact bytes of origin and angles: a scanner
+  with other beams gets its own entry). This is a cache, not state: the outputs are
+  the same as recomputing them every tick.
 """
 
 from __future__ import annotations
@@ -71,6 +77,7 @@ from autonomy.types import EMPTY_PATH, Assist, RobotModel
 
 SITUATIONS = ("FT", "OA", "GOA")
 FREE, OCCUPIED, UNKNOWN = 0, 1, 2
+_WINDINGS = (2 * math.pi * np.array([-1.0, 0.0, 1.0]))[:, None]  # shifts of the circle
 
 
 @dataclass(frozen=True, slots=True)
@@ -119,6 +126,12 @@ class SectorGrid:
     resolution: float  # [m]
     half: int  # the grid spans cells -half .. half on each axis
     lookup: np.ndarray  # ((2 half + 1)^2,) zone cell of each grid cell, -1 outside the zone
+    # per-scanner geometry derived from the grid (see :func:`_scan_geometry`), keyed by the
+    # scanner's origin and beam angles: a mounted scanner's beams are the same every tick
+    cache: dict = field(default_factory=dict, repr=False)
+
+
+_CACHE_SIZE = 16  # scanner geometries kept per grid (a robot has a few scanners)
 
 
 def sector_grid(
@@ -175,6 +188,36 @@ def _nearest_beam(bearing: np.ndarray, angles: np.ndarray) -> tuple[np.ndarray, 
     return order[nearest], error <= increment / 2 + 1e-9
 
 
+def _scan_geometry(
+    grid: SectorGrid, angles: np.ndarray, origin: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """What :func:`cell_states` needs of one scanner's geometry, cached on the grid.
+
+    Returns
+    -------
+    seen : (v,) indices of the zone cells inside the scanner's field of view.
+    beam : (v,) index of the beam nearest each of them in bearing.
+    far : (v,) [m] their distance from the scanner plus half a cell: a cell is Free when
+        its beam's range exceeds this.
+    cos, sin : (n,) of the beam angles.
+    """
+    key = (origin.tobytes(), angles.tobytes())
+    found = grid.cache.get(key)
+    if found is not None:
+        return found
+    rel = grid.cells - origin
+    distance = np.hypot(rel[:, 0], rel[:, 1])
+    beam, visible = _nearest_beam(np.arctan2(rel[:, 1], rel[:, 0]), angles)
+    seen = np.flatnonzero(visible)
+    found = (seen, beam[seen], distance[seen] + grid.resolution / 2, np.cos(angles), np.sin(angles))
+    for array in found:
+        array.setflags(write=False)
+    if len(grid.cache) >= _CACHE_SIZE:
+        grid.cache.clear()
+    grid.cache[key] = found
+    return found
+
+
 def cell_states(scans: Any, grid: SectorGrid) -> np.ndarray:
     """State of every zone cell from the current scans (inverse range-sensor model).
 
@@ -198,13 +241,12 @@ def cell_states(scans: Any, grid: SectorGrid) -> np.ndarray:
         origin = np.asarray(scan.origin, dtype=float)
         if len(angles) < 2:
             continue
-        rel = grid.cells - origin
-        distance = np.hypot(rel[:, 0], rel[:, 1])
-        beam, visible = _nearest_beam(np.arctan2(rel[:, 1], rel[:, 0]), angles)
-        free |= visible & (distance + grid.resolution / 2 < ranges[beam])
+        seen, beam, far, cos, sin = _scan_geometry(grid, angles, origin)
+        free[seen] |= far < ranges[beam]
         hit = ranges < scan.max_range
-        hx = origin[0] + ranges[hit] * np.cos(angles[hit])
-        hy = origin[1] + ranges[hit] * np.sin(angles[hit])
+        r = ranges[hit]
+        hx = origin[0] + r * cos[hit]
+        hy = origin[1] + r * sin[hit]
         ix = np.rint(hx / grid.resolution).astype(int) + grid.half
         iy = np.rint(hy / grid.resolution).astype(int) + grid.half
         inside = (ix >= 0) & (ix < size) & (iy >= 0) & (iy < size)
@@ -239,10 +281,8 @@ def input_sector_probabilities(theta_u: float, sigma: float, edges: np.ndarray) 
     -------
     (N,) probabilities summing to one.
     """
-    shifts = (2 * math.pi * np.array([-1.0, 0.0, 1.0]))[:, None]  # windings of the circle
-    upper = ndtr((edges[1:] - theta_u + shifts) / sigma)
-    lower = ndtr((edges[:-1] - theta_u + shifts) / sigma)
-    mass = (upper - lower).sum(axis=0)  # Eq. (3.16)
+    cdf = ndtr((edges - theta_u + _WINDINGS) / sigma)  # (3, N + 1), three windings
+    mass = (cdf[:, 1:] - cdf[:, :-1]).sum(axis=0)  # Eq. (3.16)
     return mass / mass.sum()  # epsilon of Eq. (3.15)
 
 

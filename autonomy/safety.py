@@ -37,6 +37,11 @@ Decisions where the spec is silent:
   command by ``s`` visits a prefix of the unscaled command's arc, of length
   ``s * T(s)`` in the unscaled command's time, so one forward simulation of the
   unscaled command gives the first unsafe time and the scale follows in closed form.
+
+Per-tick cost: the inflated radii are remembered per robot and margin
+(:func:`inflated_radius`), and :func:`arc_poses` and :func:`translation_distance` avoid
+numpy's per-call overheads while doing the same floating-point operations, so their
+results are bit-for-bit those of the plain expressions (``tests/test_mode_equivalence.py``).
 """
 
 from __future__ import annotations
@@ -70,9 +75,23 @@ def arc_poses(v: np.ndarray, t: np.ndarray) -> np.ndarray:
     vx, vy, w = v[:, 0, None], v[:, 1, None], v[:, 2, None]
     a = w * t  # heading change
     # sin(a)/w and (1 - cos a)/w written with sinc so that w -> 0 is exact
-    s1 = t * np.sinc(a / np.pi)
-    s2 = t * np.sin(a / 2) * np.sinc(a / (2 * np.pi))
-    return np.stack((vx * s1 - vy * s2, vx * s2 + vy * s1, a), axis=-1)
+    s1 = t * _sinc(a / np.pi)
+    s2 = t * np.sin(a / 2) * _sinc(a / (2 * np.pi))
+    out = np.empty((*a.shape, 3))
+    np.subtract(vx * s1, vy * s2, out=out[..., 0])
+    np.add(vx * s2, vy * s1, out=out[..., 1])
+    out[..., 2] = a
+    return out
+
+
+_EPS = float(np.finfo(float).eps)
+
+
+def _sinc(x: np.ndarray) -> np.ndarray:
+    """``numpy.sinc`` of a float array, the same operations without its per-call overhead."""
+    x = np.pi * x
+    y = np.where(x, x, _EPS)
+    return np.sin(y) / y
 
 
 def footprint_clearance(poses: np.ndarray, points: np.ndarray, robot: RobotModel) -> np.ndarray:
@@ -166,6 +185,21 @@ def interval_clearance(h0: float, h: np.ndarray, rate: np.ndarray, dt: float) ->
     return 0.5 * (prev + h - np.asarray(rate, dtype=float)[:, None] * dt)
 
 
+_RADII: dict = {}  # (robot, margin) -> inflated radius [m]; robots hash by identity
+
+
+def inflated_radius(robot: RobotModel, margin: float) -> float:
+    """``robot.inflated_radius(margin)`` [m], remembered: the DWA and the safety layer ask
+    for the same few margins every tick."""
+    key = (robot, margin)
+    radius = _RADII.get(key)
+    if radius is None:
+        if len(_RADII) >= 64:
+            _RADII.clear()
+        radius = _RADII[key] = robot.inflated_radius(margin)
+    return radius
+
+
 def required_clearance(c0: float, robot: RobotModel, tolerance_m: float) -> float:
     """Clearance [m] a motion must keep: the protective margin, or, inside the
     protective field already, the current clearance ``c0`` less ``tolerance_m``."""
@@ -195,14 +229,18 @@ def translation_distance(
     # n_e . p - lam n_e . u <= c_e for every edge (Cyrus-Beck clipping of that ray)
     num = points @ robot.edge_normals.T - robot.edge_offsets  # (m, e)
     den = robot.edge_normals @ u  # (e,)
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        ratio = num / den
-    entering = den > 1e-12
-    leaving = den < -1e-12
-    lam_in = np.max(np.where(entering, ratio, -np.inf), axis=1, initial=0.0)
-    lam_out = np.min(np.where(leaving, ratio, np.inf), axis=1, initial=np.inf)
-    parallel_ok = np.all(np.where(~entering & ~leaving, num <= 0.0, True), axis=1)
-    return np.where(parallel_ok & (lam_in <= lam_out), lam_in, np.inf)
+    lam_in = np.zeros(len(points))  # entering edges: the ray enters after max(num / den)
+    lam_out = np.full(len(points), np.inf)  # leaving edges: it leaves at min(num / den)
+    ok = np.ones(len(points), dtype=bool)  # parallel edges: the ray must start inside
+    with np.errstate(over="ignore"):
+        for e, d in enumerate(den.tolist()):
+            if d > 1e-12:
+                np.maximum(lam_in, num[:, e] / d, out=lam_in)
+            elif d < -1e-12:
+                np.minimum(lam_out, num[:, e] / d, out=lam_out)
+            else:
+                ok &= num[:, e] <= 0.0
+    return np.where(ok & (lam_in <= lam_out), lam_in, np.inf)
 
 
 def safe_command(
@@ -245,7 +283,7 @@ def safe_command(
         return v.copy(), 1.0
     brake = max(speed / (2 * robot.max_accel), yaw_rate / (2 * robot.max_yaw_accel))
     tau_max = max(horizon_s, robot.dt + brake)  # checked time of the unscaled command
-    radius = robot.inflated_radius(robot.protective_margin)
+    radius = inflated_radius(robot, robot.protective_margin)
 
     points = np.asarray(points, dtype=float).reshape(-1, 2)
     reach = speed * tau_max + radius + step_m
