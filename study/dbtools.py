@@ -38,7 +38,7 @@ from sqlalchemy import JSON, func, select
 from sqlalchemy.orm import Session
 
 from questionnaires import nasa_tlx
-from study.recording import verify
+from study.recording import verify_many
 from study.storage import (
     Base,
     Event,
@@ -132,6 +132,7 @@ def check(db: str | Path, *, verify_recordings: bool = True) -> CheckReport:
     """
     engine = open_database(db, create=False)
     problems: list[str] = []
+    to_verify: list[tuple[Path, str]] = []  # recordings, checked together at the end
     counts: dict[str, int] = {}
     folder = database_file(db).parent
     try:
@@ -216,7 +217,7 @@ def check(db: str | Path, *, verify_recordings: bool = True) -> CheckReport:
                     or trial.score is None
                 ):
                     problems.append(f"{where}: completed without its outcome fields")
-                _check_recording(trial, folder, verify_recordings, problems, where)
+                _check_recording(trial, folder, verify_recordings, problems, where, to_verify)
             # questionnaires after main trials of completed sessions
             if after is not None and after[0]:
                 for session_id, trials in main_trials.items():
@@ -241,11 +242,21 @@ def check(db: str | Path, *, verify_recordings: bool = True) -> CheckReport:
             counts["trials_checked"] = checked
     finally:
         engine.dispose()
+    if to_verify:  # one rerun process for all recordings
+        failures = verify_many([path for path, _ in to_verify])
+        for path, where in to_verify:
+            if path in failures:
+                problems.append(f"{where}: {failures[path]}")
     return CheckReport(str(db), tuple(problems), counts)
 
 
 def _check_recording(
-    trial: Trial, folder: Path, verify_recordings: bool, problems: list[str], where: str
+    trial: Trial,
+    folder: Path,
+    verify_recordings: bool,
+    problems: list[str],
+    where: str,
+    to_verify: list[tuple[Path, str]],
 ) -> None:
     if not trial.recording_path:
         problems.append(f"{where}: no recording path")
@@ -256,10 +267,7 @@ def _check_recording(
         problems.append(f"{where}: recording {trial.recording_path} is missing")
         return
     if verify_recordings:
-        try:
-            verify(path)
-        except (ValueError, FileNotFoundError) as error:
-            problems.append(f"{where}: {' '.join(str(error).split())}")
+        to_verify.append((path, where))
 
 
 # ------------------------------------------------------------------------- export

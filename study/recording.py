@@ -63,6 +63,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import shutil
 import subprocess
 import uuid
@@ -689,6 +690,44 @@ def verify(path: str | Path, *, timeout_s: float = 120.0) -> None:
         message = " ".join((done.stderr or done.stdout).split()) or f"exit {done.returncode}"
         raise ValueError(f"{path}: rerun rrd verify failed: {message}")
     recording_summary(path)  # raises ValueError if it is no recording
+
+
+def verify_many(paths: list[Path], *, timeout_s: float = 600.0) -> dict[Path, str]:
+    """Check many recordings with one ``rerun rrd verify`` (a process start per file costs
+    about 0.1 s); returns path -> error message for the files that fail (empty: all good).
+
+    Only when the batch fails, or verifies fewer files than it was given (a file that is no
+    recording at all is skipped silently by rerun), is every file checked by :func:`verify`
+    on its own to name the culprits.
+    """
+    paths = [Path(p) for p in paths]
+    missing = {p: "No such file" for p in paths if not p.is_file()}
+    present = [p for p in paths if p not in missing]
+    if not present:
+        return missing
+    try:
+        done = subprocess.run(
+            [rerun_executable(), "rrd", "verify", "--check-footers", "true", *map(str, present)],
+            capture_output=True,
+            text=True,
+            env=rerun_environment(),
+            timeout=timeout_s,
+            check=False,
+        )
+        text = f"{done.stdout}\n{done.stderr}"
+        counted = re.search(r"(\d+) files? verified without error", text)
+        ok = done.returncode == 0 and counted is not None and int(counted[1]) == len(present)
+    except subprocess.TimeoutExpired:
+        ok = False
+    if ok:
+        return missing
+    failures = dict(missing)
+    for path in present:
+        try:
+            verify(path)
+        except (ValueError, FileNotFoundError) as error:
+            failures[path] = " ".join(str(error).split())
+    return failures
 
 
 def viewer_command(path: str | Path) -> list[str]:

@@ -31,6 +31,7 @@ from study.recording import (
     rerun_environment,
     rerun_executable,
     verify,
+    verify_many,
 )
 from study.storage import Participant, SessionRow, Study, Trial, open_database
 
@@ -272,6 +273,13 @@ def test_verify_rejects_garbage_and_truncated_recordings(tmp_path, scene, rng):
             verify(bad)
     with pytest.raises(ValueError, match="garbage.rrd"):
         recording_summary(garbage)
+    # many at once: one rerun process, and only the bad ones named
+    other = tmp_path / "other.rrd"
+    _record(other, "k2", scene, rng, n=10)
+    assert verify_many([good, other]) == {}
+    failures = verify_many([good, truncated, other, garbage, tmp_path / "missing.rrd"])
+    assert set(failures) == {truncated, garbage, tmp_path / "missing.rrd"}
+    assert "garbage.rrd" in failures[garbage]
 
 
 def _fresh_rerun_home(tmp_path, name):
