@@ -628,6 +628,7 @@ def run_session(
     camera_hz: float | None = None,
     on_tick: Callable[[int, TrialWriter], None] | None = None,
     recordings: str | Path | None = None,
+    durable: bool = True,
 ) -> SessionSummary:
     """Run (or resume) one participant's session of ``protocol`` and store everything.
 
@@ -662,6 +663,9 @@ def run_session(
         Folder for the trials' rerun recordings (``<code>/...rrd`` inside it); default
         ``<db stem>_recordings`` beside the database. Paths are stored relative to the
         database's folder.
+    durable : bool
+        False only for a scratch database thrown away after a crash (no fsync on commit:
+        :func:`study.storage.open_database`); a synthetic study's per-participant file.
 
     Returns
     -------
@@ -681,7 +685,7 @@ def run_session(
         clock = WallClock() if kind == "human" else FreeClock()
     if camera_hz is None:
         camera_hz = 2.0 if kind == "human" else 0.0
-    engine = open_database(db)
+    engine = open_database(db, durable=durable)
     notes: list[str] = []
     try:
         with Session(engine) as s, s.begin():

@@ -32,6 +32,7 @@ resumed session marks its running trial ``aborted`` and runs it again.
 from __future__ import annotations
 
 import datetime as dt
+import functools
 from pathlib import Path
 from typing import Any
 
@@ -242,24 +243,29 @@ def database_file(db: str | Path) -> Path:
     return Path.cwd() / "asa_study.db"
 
 
-def _sqlite_pragmas(dbapi_connection: Any, _record: Any) -> None:
+def _sqlite_pragmas(dbapi_connection: Any, _record: Any, *, durable: bool = True) -> None:
     cursor = dbapi_connection.cursor()
     cursor.execute("PRAGMA journal_mode=WAL")
     # FULL: a committed transaction survives a power cut, not only a crash of the process
     # (WAL + NORMAL may lose the last commits); the trial loop commits about once a second.
-    cursor.execute("PRAGMA synchronous=FULL")
+    # OFF only for scratch databases that are thrown away after a crash anyway.
+    cursor.execute(f"PRAGMA synchronous={'FULL' if durable else 'OFF'}")
     # another process (asa db check, export, a second session) may hold the write lock
     cursor.execute(f"PRAGMA busy_timeout={BUSY_TIMEOUT_MS}")
     cursor.execute("PRAGMA foreign_keys=ON")
     cursor.close()
 
 
-def open_database(db: str | Path, *, create: bool = True) -> Engine:
+def open_database(db: str | Path, *, create: bool = True, durable: bool = True) -> Engine:
     """Open (and with ``create`` make) a study database and check it is ours.
 
     Raises ``ValueError`` naming the database when it exists but was not made by this
     platform, by a newer schema version, is not an SQLite file at all, or cannot be
     opened or written (a missing folder, no permission, a full disk).
+
+    ``durable=False`` skips SQLite's fsync on commit: only for a scratch database that is
+    deleted and rebuilt when its process dies (a synthetic study's per-participant file,
+    :mod:`study.synth`); a study database always keeps the default.
     """
     url = database_url(db)
     if url.startswith("sqlite:///"):
@@ -269,7 +275,7 @@ def open_database(db: str | Path, *, create: bool = True) -> Engine:
         if not path.parent.is_dir():
             raise ValueError(f"{db}: the folder {path.parent} does not exist")
     try:
-        return _open(db, url, create)
+        return _open(db, url, create, durable)
     except DBAPIError as error:
         reason = " ".join(str(error.orig).split()) if error.orig is not None else str(error)
         raise ValueError(
@@ -278,10 +284,10 @@ def open_database(db: str | Path, *, create: bool = True) -> Engine:
         ) from error
 
 
-def _open(db: str | Path, url: str, create: bool) -> Engine:
+def _open(db: str | Path, url: str, create: bool, durable: bool) -> Engine:
     engine = create_engine(url)
     if engine.dialect.name == "sqlite":
-        event.listen(engine, "connect", _sqlite_pragmas)
+        event.listen(engine, "connect", functools.partial(_sqlite_pragmas, durable=durable))
     tables = set(inspect(engine).get_table_names())
     ours = set(Base.metadata.tables)
     if tables and not {"meta", "study"} <= tables:

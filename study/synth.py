@@ -19,7 +19,9 @@ How it works (decisions where the spec is silent):
   transaction per participant, with fresh row ids (:func:`merge_participant`), and then
   deletes the temporary file. Recordings go straight to their final folder
   (``<db stem>_recordings/<code>/`` by default); the merge rewrites
-  ``trial.recording_path`` relative to the database's folder.
+  ``trial.recording_path`` relative to the database's folder. The temporary files are
+  opened without fsync on commit (``durable=False``): after a crash they are deleted and
+  rebuilt anyway, and the merge into the study database is durable as always.
 - Interrupted and started again with the same options: participants already in the
   database are skipped (a merge is one transaction, so a participant is either wholly
   there or not at all); any other participant is run again from scratch, its temporary
@@ -125,6 +127,7 @@ def _run_job(job: _Job) -> _Done:
         participant=participant,
         seed=job.seed,
         recordings=job.recordings,
+        durable=False,  # the scratch file is deleted and rebuilt after a crash
     )
     simulated = sum(
         (t.completion_time_s or 0.0) for t in summary.trials if t.completion_time_s is not None

@@ -92,6 +92,10 @@ def test_sqlite_is_durable_and_waits_for_locks(tmp_path):
         assert con.execute(text("PRAGMA busy_timeout")).scalar() >= 1000
         assert con.execute(text("PRAGMA journal_mode")).scalar() == "wal"
     engine.dispose()
+    scratch = open_database(tmp_path / "scratch.db", durable=False)  # synth's work files
+    with scratch.connect() as con:
+        assert con.execute(text("PRAGMA synchronous")).scalar() == 0  # OFF
+    scratch.dispose()
 
 
 def test_trial_specs_that_could_never_end_are_refused():
