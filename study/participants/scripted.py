@@ -27,7 +27,8 @@ Behaviour (issue 4, the session engine's brief):
   back away, opposite to where it pushed, for ``backoff_s``, then follow the plan again.
 
 Deterministic for a given generator seed: every draw comes from the passed-in
-``numpy.random.Generator``; grids and plans are cached per scenario.
+``numpy.random.Generator``; grids are cached per scenario, planned paths per process
+(a path depends only on the scene, its ends and the settings).
 """
 
 from __future__ import annotations
@@ -84,6 +85,13 @@ class ScriptedSettings:
             raise ValueError(
                 f"ScriptedSettings: field 'accuracy': must be in [0, 1], got {self.accuracy!r}"
             )
+
+
+# Planned paths, shared by every scripted (and synthetic) participant of a process: a path
+# depends only on the scene, its ends and the planning settings, and A* with the centring
+# costs about 0.1 s, paid once per route instead of once per trial.
+_PATHS: dict[tuple[Any, ...], np.ndarray] = {}
+_MAX_PATHS = 256
 
 
 def _wrap(angle: float) -> float:
@@ -197,6 +205,22 @@ class ScriptedParticipant:
         return self._maps[key]
 
     def _path(self, scenario: Scenario, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        key = (
+            scenario.source or scenario.name,
+            a.tobytes(),
+            b.tobytes(),
+            self.settings.clearances_m,
+            self.settings.centre_clearance_m,
+        )
+        if key not in _PATHS:
+            if len(_PATHS) >= _MAX_PATHS:
+                _PATHS.pop(next(iter(_PATHS)))
+            path = self._plan(scenario, a, b)
+            path.setflags(write=False)
+            _PATHS[key] = path
+        return _PATHS[key]
+
+    def _plan(self, scenario: Scenario, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         grid = self._grid(scenario)
         for clearance in self.settings.clearances_m:
             path = shortest_path(grid, a, b, clearance_m=clearance)
