@@ -15,6 +15,13 @@ Decisions where the thesis is silent:
   an equal quota (smaller clusters give all their points, the rest is shared out among the
   larger ones), so the evidence of a small cluster is not swamped by the others. The
   subsample is the same for every cluster; only the +-1 targets change.
+- Hard negatives (:meth:`SOGPClassifier.fit`'s ``negatives``; a decision beyond the
+  thesis, whose GPs saw only demonstrated features): features known to be *no* task, with
+  target -1 in every one-vs-all GP. Trained only on the demonstrated target's features,
+  nothing tells a GP that another candidate's feature at the same tick is not the task,
+  and Eq. (5.8) then often picks a wrong target; with them the means of such candidates
+  are pulled below 0, so the confidence (5.10) is low when no candidate looks like a
+  task ("better no assistance than wrong assistance", Sec. 7.4).
 - Every GP then absorbs *all* training points online, in its own random order (drawn from
   the ``rng`` passed to :meth:`SOGPClassifier.fit`), so no cluster's points arrive as one
   block before the capacity is reached.
@@ -88,7 +95,14 @@ class SOGPClassifier:
         self.restarts = int(restarts)
         self.max_length_scale = float(max_length_scale)
 
-    def fit(self, X: np.ndarray, labels: np.ndarray, *, rng: np.random.Generator) -> SOGPClassifier:
+    def fit(
+        self,
+        X: np.ndarray,
+        labels: np.ndarray,
+        *,
+        rng: np.random.Generator,
+        negatives: np.ndarray | None = None,
+    ) -> SOGPClassifier:
         """Learn one GP per cluster on targets +1 (own cluster) / -1 (others).
 
         Parameters
@@ -99,6 +113,10 @@ class SOGPClassifier:
             (n,) integer cluster ids.
         rng : numpy.random.Generator
             Subsample, optimiser restarts and the order of the online updates.
+        negatives : numpy.ndarray, optional
+            (k, d) "hard negatives": features that belong to no cluster (e.g. the other
+            candidate components at a demonstrated tick), target -1 in *every* GP. They
+            take part in the class-balanced evidence subsample as one extra class.
 
         Returns
         -------
@@ -116,6 +134,17 @@ class SOGPClassifier:
         if not np.all(np.isfinite(X)):
             raise ValueError("X: features must be finite (no NaN or inf)")
         self.classes_ = np.unique(labels)
+        if negatives is not None and len(negatives) > 0:
+            negatives = np.asarray(negatives, dtype=float)
+            if negatives.ndim != 2 or negatives.shape[1] != X.shape[1]:
+                raise ValueError(
+                    f"negatives: expected shape (k, {X.shape[1]}), got {negatives.shape}"
+                )
+            if not np.all(np.isfinite(negatives)):
+                raise ValueError("negatives: features must be finite (no NaN or inf)")
+            none = int(self.classes_.min()) - 1  # a label no cluster has
+            X = np.concatenate((X, negatives))
+            labels = np.concatenate((labels, np.full(len(negatives), none, labels.dtype)))
         sub = balanced_subsample(labels, self.hyper_points, rng=rng)
         self.models_ = []
         for c in self.classes_:

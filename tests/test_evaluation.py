@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
@@ -17,7 +18,9 @@ from autonomy.evaluation import (
     candidate_features,
     evaluate,
     f05_with_targets,
+    fit_method,
     format_report,
+    hard_negatives,
     run_folds,
     way_points_of,
 )
@@ -35,6 +38,7 @@ FAST = EvaluationSettings(
     stride=3,
     test_stride=3,
     inner_folds=2,
+    sogp_length_scale_grid=(),
 )
 
 
@@ -134,14 +138,19 @@ def test_evaluation_result_has_the_documented_shape(result):
         assert all(0.0 <= v <= 1.0 for v in f.values())
         conf = np.array(result["confusion"][m]["matrix"])
         assert conf.shape == (3, 4) and conf.sum() == result["n_test_ticks"]
-        intro = result["introspection_entropy"][m]
-        assert set(intro) == {
+        pairs = result["introspection_pairs"][m]
+        assert set(pairs) == {
             "doorway_crossing+object_inspection",
             "doorway_crossing+wall_following",
             "object_inspection+wall_following",
-            "mean",
         }
-        assert all(0.0 <= v <= 1.0 for v in intro.values())
+        assert all(0.0 <= v <= 1.0 for v in pairs.values())
+        mean = result["introspection_entropy"][m]  # issue 3: classifier -> a number
+        assert isinstance(mean, float) and mean == pytest.approx(np.mean(list(pairs.values())))
+    assert set(result["f05"]) == set(METHODS) == set(result["introspection_entropy"])
+    assert result["negatives"] is True
+    assert result["sogp_length_scale_cap"] == [FAST.max_length_scale] * FAST.folds
+    assert set(result["sogp_at_least_baselines"]) == {*labels, "macro"}
     assert set(result["trajectory_rates"]) == set(RECOGNISERS)
     for rates in result["trajectory_rates"].values():
         assert sum(rates.values()) == pytest.approx(1.0)
@@ -159,6 +168,10 @@ def test_the_sogp_recognises_synthetic_tasks_and_targets_well(result):
 def test_bad_settings_are_refused(rng):
     with pytest.raises(ValueError, match="--folds"):
         EvaluationSettings(folds=1)
+    with pytest.raises(ValueError, match="sogp_length_scale_grid"):
+        EvaluationSettings(sogp_length_scale_grid=(0.5, 0.0))
+    with pytest.raises(ValueError, match="negatives_per_tick"):
+        EvaluationSettings(negatives_per_tick=0)
     demos = synthetic_demos(rng, runs=1, steps=10)
     with pytest.raises(ValueError, match=r"--folds: must be between 2 and the number of runs"):
         evaluate(demos, kinds=KINDS, settings=EvaluationSettings(folds=4))
@@ -185,6 +198,7 @@ def recorded(tmp_path_factory):
         (["--demonstrations", "{demos}", "--folds", "1"], "--folds"),
         (["--demonstrations", "{demos}", "--folds", "5"], "--folds: must be between 2"),
         (["--demonstrations", "{demos}", "--model", "{tmp}/bad.npz"], "bad.npz"),
+        (["--model", "{tmp}/bad.npz"], "bad.npz"),  # no demonstrations: nothing recorded
     ],
 )
 def test_asa_evaluate_bad_input_is_one_line_and_exit_2(args, needle, recorded, tmp_path, capsys):
@@ -195,6 +209,58 @@ def test_asa_evaluate_bad_input_is_one_line_and_exit_2(args, needle, recorded, t
     assert exit_info.value.code == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith("asa: error:") and needle in err and len(err.splitlines()) == 1
+
+
+def test_sogp_length_scale_cap_is_chosen_by_inner_cv_on_the_training_data(rng):
+    demos = synthetic_demos(rng, runs=2, steps=20)
+    label = {c: i for i, c in enumerate(sorted(KINDS))}
+    y = np.array([label[t] for t in demos.task])
+    Z = (demos.q - demos.q.mean(axis=0)) / demos.q.std(axis=0)
+    Z = np.column_stack((Z[:, :2], np.cos(demos.q[:, 2]), np.sin(demos.q[:, 2]), Z[:, 3:]))
+    grid = (0.3, 3.0)
+    settings = replace(FAST, sogp_length_scale_grid=grid)
+    neg = Z[::3] + rng.normal(0.0, 2.0, size=Z[::3].shape)  # no task lies there
+    fitted = fit_method(
+        "sogp", Z, y, demos.run, settings=settings, rng=rng, negatives=neg,
+        negative_groups=demos.run[::3],
+    )  # fmt: skip
+    assert fitted.model.max_length_scale in grid
+
+
+def test_hard_negatives_are_other_candidates_of_the_same_tick(rng):
+    demos = synthetic_demos(rng, runs=1, steps=12)
+    off, ids = demos.cand_offsets, demos.cand_ids
+    ticks = np.arange(0, len(demos.q), 2)
+    per_tick = int(rng.integers(1, 3))
+    rows = hard_negatives(ticks, off, ids, demos.target, per_tick, rng)
+    tick_of = np.repeat(np.arange(len(off) - 1), np.diff(off))
+    assert set(tick_of[rows].tolist()) == set(ticks.tolist())  # every tick gives some
+    assert np.all(ids[rows] != demos.target[tick_of[rows]])  # never the demonstrated one
+    assert np.all(np.bincount(tick_of[rows]) <= per_tick)
+
+
+def test_cache_records_once_and_checks_the_hash(recorded, tmp_path, monkeypatch):
+    from autonomy.training import data_sha256
+    from study.cli.evaluate import cache_root, cached_demonstrations
+    from study.demonstrations import load_demonstrations
+
+    monkeypatch.setenv("ASA_CACHE", str(tmp_path / "cache"))
+    assert cache_root() == tmp_path / "cache"
+    sha = data_sha256(load_demonstrations(recorded).q)  # the fixture: 1 run per task, seed 4
+    folder, fresh = cached_demonstrations(sha, runs=1, seed=4)
+    assert fresh and folder == tmp_path / "cache" / sha[:16]
+    assert [p.name for p in (tmp_path / "cache").iterdir()] == [sha[:16]]  # no leftovers
+    again, fresh_again = cached_demonstrations(sha, runs=1, seed=4)
+    assert again == folder and not fresh_again  # served from the cache
+    with pytest.raises(ValueError, match="pass --demonstrations"):
+        cached_demonstrations("0" * 64, runs=1, seed=4, where="m.npz")
+    assert not (tmp_path / "cache" / ("0" * 16)).exists()
+    with pytest.raises(ValueError, match=r"cached in .* pass --demonstrations"):
+        (folder.parent / ("1" * 16)).symlink_to(folder)  # a cache that holds other data
+        cached_demonstrations("1" * 64, where="m.npz")
+    monkeypatch.delenv("ASA_CACHE")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    assert cache_root() == tmp_path / "xdg" / "asa-study"
 
 
 @pytest.mark.slow

@@ -470,3 +470,27 @@ def test_a_negative_gamma_reconditions_q(rng):
     ref.update(x, 0.5)
     # without the guard the corrupted Q enters e_hat and the update of alpha
     np.testing.assert_allclose(gp.predict(X)[0], ref.predict(X)[0], atol=1e-4)
+
+
+def test_hard_negatives_lower_a_wrong_candidates_score(rng):
+    # Two clusters; the "wrong candidate" lies beside cluster 0, where only negatives say
+    # it is no task. With them its best posterior mean must drop (and fall below 0).
+    n = 60
+    X = np.concatenate(
+        (rng.normal((0.0, 0.0), 0.3, size=(n, 2)), rng.normal((3.0, 0.0), 0.3, size=(n, 2)))
+    )
+    y = np.repeat([0, 1], n)
+    wrong = np.array([[0.0, 0.9]])
+    neg = rng.normal(wrong[0], 0.15, size=(n, 2))
+    kw = {"capacity": 200, "hyper_points": 150, "restarts": 1, "max_length_scale": 1.0}
+    plain = SOGPClassifier(**kw).fit(X, y, rng=np.random.default_rng(rng.integers(2**31)))
+    hard = SOGPClassifier(**kw).fit(
+        X, y, rng=np.random.default_rng(rng.integers(2**31)), negatives=neg
+    )
+    assert hard.scores(wrong).max() < plain.scores(wrong).max()
+    assert hard.scores(wrong).max() < 0.0
+    # the clusters themselves are still recognised
+    centres = np.array([[0.0, 0.0], [3.0, 0.0]])
+    np.testing.assert_array_equal(hard.predict(centres), [0, 1])
+    with pytest.raises(ValueError, match="negatives"):
+        SOGPClassifier(**kw).fit(X, y, rng=rng, negatives=np.zeros((3, 5)))

@@ -15,11 +15,23 @@ Decisions where the brief is silent:
   the run within about two minutes. The file is validated like any model
   file (a bad one is a ValueError naming it).
 - The task types' target kinds come from :data:`tasks.contextual.TARGET_KIND`.
+- Without ``--demonstrations`` the demonstrations behind the model are used: the cache
+  folder (``$ASA_CACHE``, else ``$XDG_CACHE_HOME/asa-study``, else
+  ``~/.cache/asa-study``) holds them in a subfolder named by the first 16 hex digits of
+  the model's ``metadata["data_sha256"]``. When that folder is missing they are recorded
+  with the shipped model's recipe (``autonomy/models/README.md``: ``asa demonstrations
+  record --task all --runs 12 --seed 7``, :data:`RECIPE`; about 15 s) into a temporary
+  sibling folder, their hash is checked against the model's (a mismatch is a
+  ValueError: the recorder changed, or the model was not trained on that recipe; pass
+  ``--demonstrations``) and the folder is then renamed into place, so an interrupted
+  recording never leaves a half-filled cache. A cached folder is re-checked on every use.
 """
 
 from __future__ import annotations
 
 import json
+import os
+import shutil
 from dataclasses import fields, replace
 from pathlib import Path
 from typing import Any
@@ -29,6 +41,8 @@ import click
 from autonomy.evaluation import EvaluationSettings, evaluate, format_report
 from autonomy.model import DEFAULT_MODEL, load_model
 
+RECIPE = {"task": "all", "runs": 12, "seed": 7}  # autonomy/models/README.md
+
 _RECIPE = {
     "capacity": "capacity",
     "hyper_points": "hyper_points",
@@ -37,8 +51,71 @@ _RECIPE = {
 }
 
 
+def cache_root() -> Path:
+    """``$ASA_CACHE``, else ``$XDG_CACHE_HOME/asa-study``, else ``~/.cache/asa-study``."""
+    if os.environ.get("ASA_CACHE"):
+        return Path(os.environ["ASA_CACHE"])
+    if os.environ.get("XDG_CACHE_HOME"):
+        return Path(os.environ["XDG_CACHE_HOME"]) / "asa-study"
+    return Path.home() / ".cache" / "asa-study"
+
+
+def cached_demonstrations(
+    data_sha256: str,
+    *,
+    task: str = RECIPE["task"],
+    runs: int = RECIPE["runs"],
+    seed: int = RECIPE["seed"],
+    where: str = "model",
+) -> tuple[Path, bool]:
+    """The cached demonstrations whose moving ticks hash to ``data_sha256``, recording
+    them (``task``, ``runs``, ``seed`` as ``asa demonstrations record``) if missing.
+
+    Returns
+    -------
+    directory : pathlib.Path
+        ``cache_root() / data_sha256[:16]``.
+    recorded : bool
+        Whether they were recorded now.
+
+    Raises
+    ------
+    ValueError
+        Naming ``where`` and the folder, if the demonstrations (cached or recorded) do
+        not hash to ``data_sha256``.
+    """
+    from autonomy.training import data_sha256 as hash_of
+    from study.demonstrations import load_demonstrations, plan_recording, record_demonstrations
+
+    if not (isinstance(data_sha256, str) and len(data_sha256) >= 16):
+        raise ValueError(f"{where}: field 'metadata.data_sha256': missing, cannot find its data")
+    final = cache_root() / data_sha256[:16]
+    recorded = not (final / "manifest.json").is_file()
+    folder = final
+    if recorded:
+        folder = final.parent / f".{final.name}.recording-{os.getpid()}"
+        shutil.rmtree(folder, ignore_errors=True)
+        record_demonstrations(folder, plan_recording(task, None), runs, seed=seed)
+    got = hash_of(load_demonstrations(folder).q)
+    if got != data_sha256:
+        if recorded:
+            shutil.rmtree(folder, ignore_errors=True)
+        raise ValueError(
+            f"{where}: field 'metadata.data_sha256': the demonstrations "
+            f"{'recorded with --task ' + task if recorded else 'cached in ' + str(final)}"
+            f"{f' --runs {runs} --seed {seed}' if recorded else ''} hash to {got[:16]}..., "
+            f"the model to {data_sha256[:16]}...; pass --demonstrations DIR"
+        )
+    if recorded:
+        try:
+            folder.rename(final)
+        except OSError:  # another process filled the cache meanwhile
+            shutil.rmtree(folder, ignore_errors=True)
+    return final, recorded
+
+
 def run_evaluation(
-    demonstrations: str | Path,
+    demonstrations: str | Path | None,
     *,
     model: str | Path | None = None,
     folds: int = 5,
@@ -68,6 +145,10 @@ def run_evaluation(
         settings = replace(settings, **overrides)
     except ValueError as error:
         raise ValueError(f"{model_path}: field 'metadata.settings': {error}") from None
+    if demonstrations is None:
+        demonstrations, _ = cached_demonstrations(
+            load_model(model_path).metadata.get("data_sha256"), where=str(model_path)
+        )
     demos = load_demonstrations(demonstrations)
     return evaluate(
         demos,
@@ -82,9 +163,10 @@ def run_evaluation(
 @click.option(
     "--demonstrations",
     "demonstrations",
-    required=True,
+    default=None,
     type=click.Path(path_type=Path),
-    help="Directory written by `asa demonstrations record`.",
+    help="Directory written by `asa demonstrations record` (default: the model's own "
+    "demonstrations, cached; recorded again if missing).",
 )
 @click.option(
     "--model",
@@ -104,7 +186,7 @@ def run_evaluation(
     help="Also write the JSON result to this file.",
 )
 def evaluate_command(
-    demonstrations: Path,
+    demonstrations: Path | None,
     model: Path | None,
     folds: int,
     seed: int,
