@@ -7,7 +7,12 @@ study of synthetic participants), ``study.load_protocol``; they are imported on 
 so ``import study`` stays light.
 """
 
+import os
 from importlib.metadata import PackageNotFoundError, version
+
+# pygame prints a banner to stdout on import, which would corrupt `asa ... --json` output
+# (the screen's modules and the camera's worker process import it); keep it quiet.
+os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
 
 try:
     __version__ = version("asa-study")

@@ -24,3 +24,17 @@ def test_unknown_names_are_attribute_errors():
         study.nothing  # noqa: B018
     with pytest.raises(AttributeError):
         analysis.nothing  # noqa: B018
+
+
+def test_importing_the_screen_prints_nothing_to_stdout():
+    """pygame's import banner would corrupt `asa ... --json` output."""
+    import os
+    import subprocess
+    import sys
+
+    env = {k: v for k, v in os.environ.items() if k != "PYGAME_HIDE_SUPPORT_PROMPT"}
+    done = subprocess.run(
+        [sys.executable, "-c", "import study.participants.human, study.ui.screen"],
+        capture_output=True, text=True, env=env, timeout=60, check=True,
+    )  # fmt: skip
+    assert done.stdout == ""
