@@ -21,6 +21,12 @@ import numpy as np
 COMPONENT_KINDS = ("doorway", "gap", "dock", "object", "wall")
 
 
+def wrap_angle(angle: float) -> float:
+    """An angle [rad] wrapped into [-pi, pi) (the one scalar wrap of sim, tasks and study;
+    ``autonomy`` keeps its own vectorised one, as it may not import sim)."""
+    return (angle + math.pi) % (2.0 * math.pi) - math.pi
+
+
 @dataclass(frozen=True, slots=True)
 class Pose2D:
     x: float  # [m]

@@ -80,7 +80,15 @@ from sim._pybullet import pybullet as p
 from sim.scenario import LaserSpec, Scenario
 from sim.semantics import RobotFrameComponents, derive_components, in_robot_frame
 from sim.sensors import CrossSection, Solid, cast, cross_section, scene_solids
-from sim.types import Contact, ImuReading, LaserScan, Observation, Pose2D, SemanticComponent
+from sim.types import (
+    Contact,
+    ImuReading,
+    LaserScan,
+    Observation,
+    Pose2D,
+    SemanticComponent,
+    wrap_angle,
+)
 
 LASER_BACKENDS = ("analytic", "pybullet")
 
@@ -190,11 +198,6 @@ def _beams(spec: LaserSpec) -> _Beams:
     origin = np.array(spec.position, dtype=float)
     angles.flags.writeable = origin.flags.writeable = False
     return _Beams(angles, origin, step)
-
-
-def _wrap(angle: float) -> float:
-    """Angle wrapped into [-pi, pi)."""
-    return (angle + math.pi) % (2.0 * math.pi) - math.pi
 
 
 def clip_command(v: np.ndarray, max_speed: float, max_yaw_rate: float) -> np.ndarray:
@@ -422,7 +425,7 @@ class World:
 
     def true_pose(self) -> Pose2D:
         """The robot's exact pose in the map frame."""
-        return Pose2D(self._q[0], self._q[1], _wrap(self._q[2]))
+        return Pose2D(self._q[0], self._q[1], wrap_angle(self._q[2]))
 
     def true_velocity(self) -> np.ndarray:
         """The robot's exact velocity (3,): robot-frame (v_x [m/s], v_y [m/s], omega [rad/s])."""
@@ -596,7 +599,7 @@ class World:
         z = self._rng.standard_normal(8 + rays.start[-1])
         (s_xy, s_yaw), (s_gyro, s_acc) = r.pose_sigma, r.imu_sigma
         estimate = Pose2D(
-            pose.x + s_xy * z[0], pose.y + s_xy * z[1], _wrap(pose.yaw + s_yaw * z[2])
+            pose.x + s_xy * z[0], pose.y + s_xy * z[1], wrap_angle(pose.yaw + s_yaw * z[2])
         )
         c, s = math.cos(pose.yaw), math.sin(pose.yaw)
         ax, ay = self._accel_map

@@ -87,7 +87,7 @@ from typing import Literal
 import numpy as np
 
 from sim.scenario import Box, Cylinder, Scenario
-from sim.types import Contact, Pose2D
+from sim.types import Contact, Pose2D, wrap_angle
 
 GOALS: tuple[str, ...] = ("dock", "start")
 ROUTE_POINT_GOALS: dict[str, str] = {"A": "start", "B": "dock"}  # a protocol's route points
@@ -602,7 +602,7 @@ class PrimaryTask:
         b = dock.pose
         return (
             math.hypot(pose.x - b.x, pose.y - b.y) <= dock.tolerance_m
-            and abs(_wrap(pose.yaw - b.yaw)) <= dock.tolerance_rad
+            and abs(wrap_angle(pose.yaw - b.yaw)) <= dock.tolerance_rad
         )
 
     def _add_clearance(self, clearance: float) -> None:
@@ -637,13 +637,15 @@ class PrimaryTask:
             self._visit_started = False
             self._visit_arc = 0.0
             self._last_phi = phi
-        facing = abs(_wrap(math.atan2(dy, dx) - pose.yaw)) <= math.radians(s.facing_tolerance_deg)
+        facing = abs(wrap_angle(math.atan2(dy, dx) - pose.yaw)) <= math.radians(
+            s.facing_tolerance_deg
+        )
         sideways = abs(v[1]) >= s.min_sideways_speed and abs(v[1]) > abs(v[0])
         if facing and sideways:
             if not self._visit_started:
                 self._visit_started = True
                 events.append(PrimaryEvent("inspection_started", t))
-            self._visit_arc += _wrap(phi - self._last_phi)
+            self._visit_arc += wrap_angle(phi - self._last_phi)
             self._best_arc = max(self._best_arc, abs(self._visit_arc))
             if abs(self._visit_arc) >= math.radians(s.min_arc_deg) - 1e-12:
                 self._inspected = True
@@ -685,11 +687,6 @@ class PrimaryTask:
             legs_reached=self._leg,
             leg_times_s=tuple(float(x) for x in legs),
         )
-
-
-def _wrap(angle: float) -> float:
-    """Angle [rad] wrapped to [-pi, pi)."""
-    return (angle + math.pi) % (2.0 * math.pi) - math.pi
 
 
 def _is_real(value: object) -> bool:

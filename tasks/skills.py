@@ -74,7 +74,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sim.types import Observation, Pose2D, SemanticComponent
+from sim.types import Observation, Pose2D, SemanticComponent, wrap_angle
 from tasks.contextual import TARGET_KIND, ContextualTask
 
 _ZERO = np.zeros(3)
@@ -144,10 +144,6 @@ class WallFace:
 
 
 # --------------------------------------------------------------------------- geometry
-
-
-def _wrap(a: float) -> float:
-    return (a + math.pi) % (2 * math.pi) - math.pi
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
@@ -371,7 +367,7 @@ class Skill:
         e = goal - _position(pose)
         dist = float(np.hypot(e[0], e[1]))
         v_map = e / dist * min(speed, s.k_pos * dist) if dist > 1e-9 else np.zeros(2)
-        omega = float(np.clip(s.k_yaw * _wrap(yaw_goal - pose.yaw), -s.max_omega, s.max_omega))
+        omega = float(np.clip(s.k_yaw * wrap_angle(yaw_goal - pose.yaw), -s.max_omega, s.max_omega))
         v = _to_robot(pose, v_map)
         return np.array([v[0], v[1], omega])
 
@@ -428,7 +424,10 @@ class CrossingSkill(Skill):
             return _ZERO, "done", True
         if self.phase_ == "approach":
             err = float(np.hypot(*(self.pre_ - _position(pose))))
-            if err < s.align_tolerance[0] and abs(_wrap(yaw_d - pose.yaw)) < s.align_tolerance[1]:
+            if (
+                err < s.align_tolerance[0]
+                and abs(wrap_angle(yaw_d - pose.yaw)) < s.align_tolerance[1]
+            ):
                 self.phase_ = "cross"
             else:
                 yaw = self._travel_yaw(pose, self.pre_, yaw_d)
@@ -438,7 +437,7 @@ class CrossingSkill(Skill):
         across = np.array([-d[1], d[0]])
         lateral = float(rel @ across)
         v_map = d * s.slow_speed - across * float(np.clip(s.k_lateral * lateral, -0.2, 0.2))
-        omega = float(np.clip(s.k_yaw * _wrap(yaw_d - pose.yaw), -s.max_omega, s.max_omega))
+        omega = float(np.clip(s.k_yaw * wrap_angle(yaw_d - pose.yaw), -s.max_omega, s.max_omega))
         v = _to_robot(pose, v_map)
         return np.array([v[0], v[1], omega]), "cross", False
 
@@ -480,7 +479,7 @@ class InspectionSkill(Skill):
                 omega = float(np.clip(s.k_yaw * bearing, -s.max_omega, s.max_omega))
                 return np.array([v[0], v[1], omega]), "approach", False
         angle = self._position_angle(obs.pose)
-        self.swept_ += _wrap(angle - self.angle_)
+        self.swept_ += wrap_angle(angle - self.angle_)
         self.angle_ = angle
         if self.sign_ * self.swept_ >= self.arc_:
             return _ZERO, "done", True
@@ -527,7 +526,7 @@ class WallFollowingSkill(Skill):
         if along >= self.end_:
             return _ZERO, ("done" if self.phase_ == "follow" else "wall_end"), True
         if self.phase_ == "approach":
-            aligned = abs(_wrap(yaw_h - pose.yaw)) < s.align_tolerance[1]
+            aligned = abs(wrap_angle(yaw_h - pose.yaw)) < s.align_tolerance[1]
             if abs(lateral - self.distance_) < 0.1 and aligned:
                 self.phase_ = "follow"
                 self.start_along_ = along
@@ -599,7 +598,7 @@ class DockingSkill(Skill):
         if float(np.hypot(*(self.centre_ - pos))) < s.dock_tolerance:
             return _ZERO, "done", True
         err = float(np.hypot(*(self.pre_ - pos)))
-        yaw_err = abs(_wrap(yaw_n - pose.yaw))
+        yaw_err = abs(wrap_angle(yaw_n - pose.yaw))
         if self.phase_ == "approach" and err < 0.25:
             self.phase_ = "align"
         if self.phase_ == "align" and err < 0.08 and yaw_err < 0.08:

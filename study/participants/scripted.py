@@ -43,7 +43,7 @@ import numpy as np
 
 from sim.occupancy import OccupancyGrid, build_grid, clearance_map, inflate, shortest_path
 from sim.scenario import Cylinder, Scenario
-from sim.types import Observation, Pose2D
+from sim.types import Observation, Pose2D, wrap_angle
 from study.types import ParticipantInput, ScreenState, TrialInfo
 
 _QUESTION = re.compile(r"^\s*(\d+)\s*([+-])\s*(\d+)\s*=\s*(\d+)")
@@ -92,10 +92,6 @@ class ScriptedSettings:
 # costs about 0.1 s, paid once per route instead of once per trial.
 _PATHS: dict[tuple[Any, ...], np.ndarray] = {}
 _MAX_PATHS = 256
-
-
-def _wrap(angle: float) -> float:
-    return (angle + math.pi) % (2.0 * math.pi) - math.pi
 
 
 def _clip(value: float, limit: float) -> float:
@@ -380,7 +376,7 @@ class ScriptedParticipant:
             return self._backoff_u
         x0, y0, yaw0 = self._still_at
         moved = not (
-            math.hypot(pose.x - x0, pose.y - y0) < 0.02 and abs(_wrap(pose.yaw - yaw0)) < 0.03
+            math.hypot(pose.x - x0, pose.y - y0) < 0.02 and abs(wrap_angle(pose.yaw - yaw0)) < 0.03
         )
         if math.hypot(u[0], u[1]) < 0.05 or moved:
             self._still_since, self._still_at = t, (pose.x, pose.y, pose.yaw)
@@ -406,7 +402,7 @@ class ScriptedParticipant:
         yaw_goal = leg.final_yaw
         if leg.face is not None:
             yaw_goal = math.atan2(leg.face[1] - pose.y, leg.face[0] - pose.x)
-        yaw_err = 0.0 if yaw_goal is None else _wrap(yaw_goal - pose.yaw)
+        yaw_err = 0.0 if yaw_goal is None else wrap_angle(yaw_goal - pose.yaw)
         if to_end <= s.stop_tolerance_m and abs(yaw_err) <= 0.05:
             return None
         # progress: the nearest path point from the current one on, within a window
@@ -428,7 +424,7 @@ class ScriptedParticipant:
             want = math.atan2(direction[1], direction[0])
         else:
             want = pose.yaw
-        err = _wrap(want - pose.yaw)
+        err = wrap_angle(want - pose.yaw)
         if abs(err) > math.radians(50):
             vel = vel * 0.3  # turn mostly on the spot before driving on
         return self._to_robot(pose, float(vel[0]), float(vel[1]), s.yaw_gain * err)
@@ -440,7 +436,7 @@ class ScriptedParticipant:
         dist = math.hypot(dx, dy)
         phi = math.atan2(dy, dx)
         if not math.isnan(self._last_phi):
-            self._swept += leg.direction * _wrap(phi - self._last_phi)
+            self._swept += leg.direction * wrap_angle(phi - self._last_phi)
         self._last_phi = phi
         if self._swept >= leg.arc:
             return None
@@ -448,5 +444,7 @@ class ScriptedParticipant:
         # facing the centre, the robot's +y (left) is the clockwise tangent
         vy = -leg.direction * s.orbit_speed
         vx = _clip(2.0 * (dist - leg.radius), 0.1)
-        w = s.yaw_gain * _wrap(face - pose.yaw) + leg.direction * s.orbit_speed / max(dist, 0.1)
+        w = s.yaw_gain * wrap_angle(face - pose.yaw) + leg.direction * s.orbit_speed / max(
+            dist, 0.1
+        )
         return np.array([vx, vy, _clip(w, self._max_yaw_rate)])

@@ -83,7 +83,7 @@ import numpy as np
 
 from questionnaires import nasa_tlx
 from sim.semantics import derive_components
-from sim.types import Observation, SemanticComponent
+from sim.types import Observation, SemanticComponent, wrap_angle
 from study.participants.scripted import ScriptedParticipant, ScriptedSettings, answer_is_correct
 from study.types import ParticipantInput, ScreenState, TrialInfo
 from tasks.skills import HumanStick, HumanStickSettings, SkillSettings, guard_command
@@ -284,10 +284,6 @@ def tlx_ratings(load: TrialLoad, params: ParticipantParams, z: np.ndarray) -> di
 
 
 # ---------------------------------------------------------------------- the participant
-
-
-def _wrap(a: float) -> float:
-    return (a + math.pi) % (2.0 * math.pi) - math.pi
 
 
 def _segments_cross(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> bool:
@@ -571,7 +567,7 @@ class SyntheticParticipant:
             # the direction of travel (map frame) from the last stick command
             u = self._prev_u
             heading = pose.yaw + (math.atan2(u[1], u[0]) if np.any(u[:2]) else 0.0)
-            rel = abs(_wrap(heading - tangents[i]))
+            rel = abs(wrap_angle(heading - tangents[i]))
             if min(rel, math.pi - rel) < math.radians(30):
                 return ("wall_following", comp.id)
         if comp.kind == "object" and dist < 0.6 and comp.id != self._inspect_id:
