@@ -114,6 +114,13 @@ class _OrbitLeg:
     arc: float  # [rad] to sweep
 
 
+def uniform_answer(item: Any, rng: np.random.Generator) -> Any:
+    """A value drawn uniformly from what a questionnaire item allows (one draw)."""
+    if item.kind == "number":
+        return int(rng.integers(item.minimum, item.maximum + 1))
+    return item.values[int(rng.integers(len(item.values)))]
+
+
 def answer_is_correct(text: str) -> bool:
     """Whether the shown answer of a question text ``"47 + 38 = 85 ?"`` is right."""
     m = _QUESTION.match(text)
@@ -172,13 +179,7 @@ class ScriptedParticipant:
 
     def fill(self, instrument: Any, *, context: Mapping[str, Any]) -> dict[str, Any]:
         """Answer every item with a value drawn uniformly from what it allows."""
-        answers: dict[str, Any] = {}
-        for item in instrument.items:
-            if item.kind == "number":
-                answers[item.id] = int(self._rng.integers(item.minimum, item.maximum + 1))
-            else:
-                answers[item.id] = item.values[int(self._rng.integers(len(item.values)))]
-        return answers
+        return {item.id: uniform_answer(item, self._rng) for item in instrument.items}
 
     def choose(self, pairs: Sequence[tuple[str, str]]) -> dict[tuple[str, str], str]:
         """Pick one member of each pair uniformly at random."""

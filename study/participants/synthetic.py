@@ -84,7 +84,12 @@ import numpy as np
 from questionnaires import nasa_tlx
 from sim.semantics import derive_components
 from sim.types import Observation, SemanticComponent, wrap_angle
-from study.participants.scripted import ScriptedParticipant, ScriptedSettings, answer_is_correct
+from study.participants.scripted import (
+    ScriptedParticipant,
+    ScriptedSettings,
+    answer_is_correct,
+    uniform_answer,
+)
 from study.types import ParticipantInput, ScreenState, TrialInfo
 from tasks.skills import HumanStick, HumanStickSettings, SkillSettings, guard_command
 
@@ -421,10 +426,8 @@ class SyntheticParticipant:
         for item in instrument.items:
             if instrument.id == "experience" and item.id in known:
                 answers[item.id] = known[item.id]
-            elif item.kind == "number":
-                answers[item.id] = int(self._rng.integers(item.minimum, item.maximum + 1))
             else:
-                answers[item.id] = item.values[int(self._rng.integers(len(item.values)))]
+                answers[item.id] = uniform_answer(item, self._rng)
         return answers
 
     def choose(self, pairs: Sequence[tuple[str, str]]) -> dict[tuple[str, str], str]:
