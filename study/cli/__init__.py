@@ -102,15 +102,24 @@ def limit_blas_threads() -> None:
     The per-tick linear algebra is small (10 candidates, 500 basis vectors): several
     BLAS threads only contend with each other and with worker processes, which on a
     2-core machine made the SOGP and the benchmark 5-8 times slower.
-    """
-    from threadpoolctl import threadpool_limits
 
+    BLAS reads its thread count when it is loaded, so the limit goes into the
+    environment (``OPENBLAS_NUM_THREADS``, ``MKL_NUM_THREADS``, ``OMP_NUM_THREADS``):
+    it then holds for numpy loaded later in this process and in every worker process
+    it starts. ``threadpoolctl`` only reaches libraries already loaded, so it is used
+    as well when numpy is. Also a worker pool's initializer.
+    """
     threads = os.environ.get("ASA_BLAS_THREADS", "1")
     if not threads.isdigit() or int(threads) < 1:
         raise ValueError(
             f"environment variable ASA_BLAS_THREADS: must be a positive integer, got {threads!r}"
         )
-    threadpool_limits(int(threads), user_api="blas")
+    for name in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "OMP_NUM_THREADS"):
+        os.environ[name] = threads
+    if "numpy" in sys.modules:
+        from threadpoolctl import threadpool_limits
+
+        threadpool_limits(int(threads), user_api="blas")
 
 
 def main(argv: list[str] | None = None) -> None:
