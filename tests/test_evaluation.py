@@ -39,6 +39,7 @@ FAST = EvaluationSettings(
     test_stride=3,
     inner_folds=2,
     sogp_length_scale_grid=(),
+    sogp_claim_grid=(0.0,),
 )
 
 
@@ -150,6 +151,7 @@ def test_evaluation_result_has_the_documented_shape(result):
     assert set(result["f05"]) == set(METHODS) == set(result["introspection_entropy"])
     assert result["negatives"] is True
     assert result["sogp_length_scale_cap"] == [FAST.max_length_scale] * FAST.folds
+    assert result["sogp_claim_threshold"] == [FAST.sogp_claim_grid[0]] * FAST.folds
     assert set(result["sogp_at_least_baselines"]) == {*labels, "macro"}
     assert set(result["trajectory_rates"]) == set(RECOGNISERS)
     for rates in result["trajectory_rates"].values():
@@ -172,6 +174,9 @@ def test_bad_settings_are_refused(rng):
         EvaluationSettings(sogp_length_scale_grid=(0.5, 0.0))
     with pytest.raises(ValueError, match="negatives_per_tick"):
         EvaluationSettings(negatives_per_tick=0)
+    for claims in ((), (0.0, 1.5), (float("nan"),)):
+        with pytest.raises(ValueError, match="sogp_claim_grid"):
+            EvaluationSettings(sogp_claim_grid=claims)
     demos = synthetic_demos(rng, runs=1, steps=10)
     with pytest.raises(ValueError, match=r"--folds: must be between 2 and the number of runs"):
         evaluate(demos, kinds=KINDS, settings=EvaluationSettings(folds=4))
@@ -199,6 +204,7 @@ def recorded(tmp_path_factory):
         (["--demonstrations", "{demos}", "--folds", "5"], "--folds: must be between 2"),
         (["--demonstrations", "{demos}", "--model", "{tmp}/bad.npz"], "bad.npz"),
         (["--model", "{tmp}/bad.npz"], "bad.npz"),  # no demonstrations: nothing recorded
+        (["--demonstrations", "{demos}", "--workers", "0"], "--workers"),
     ],
 )
 def test_asa_evaluate_bad_input_is_one_line_and_exit_2(args, needle, recorded, tmp_path, capsys):
@@ -225,6 +231,43 @@ def test_sogp_length_scale_cap_is_chosen_by_inner_cv_on_the_training_data(rng):
         negative_groups=demos.run[::3],
     )  # fmt: skip
     assert fitted.model.max_length_scale in grid
+
+
+def test_sogp_claim_threshold_is_chosen_by_inner_cv_and_only_removes_claims(rng):
+    demos = synthetic_demos(rng, runs=2, steps=20)
+    label = {c: i for i, c in enumerate(sorted(KINDS))}
+    y = np.array([label[t] for t in demos.task])
+    Z = (demos.q - demos.q.mean(axis=0)) / demos.q.std(axis=0)
+    claims = (0.0, 0.3, 0.6)
+    settings = replace(FAST, sogp_claim_grid=claims)
+    neg = Z[::3] + rng.normal(0.0, 2.0, size=Z[::3].shape)
+    fitted = fit_method(
+        "sogp", Z, y, demos.run, settings=settings, rng=rng, negatives=neg,
+        negative_groups=demos.run[::3],
+    )  # fmt: skip
+    assert fitted.claim in claims
+    queries = np.concatenate((Z, neg))
+    claimed = {}
+    for c in claims:  # a higher threshold keeps a subset of the claims, same winners
+        fitted.claim = c
+        T = fitted.task_scores(queries)
+        claimed[c] = ~np.isnan(T).any(axis=1)
+    assert np.all(claimed[0.6] <= claimed[0.3]) and np.all(claimed[0.3] <= claimed[0.0])
+    fitted.claim = 0.0
+    means = fitted.model.scores(queries)
+    assert np.array_equal(claimed[0.0], means.max(axis=1) >= 0.0)  # Eq. (5.10): conf >= 1/2
+
+
+def test_the_result_does_not_depend_on_how_the_jobs_are_run(rng):
+    from concurrent.futures import ThreadPoolExecutor
+
+    demos = synthetic_demos(rng, runs=3, steps=12)
+    serial = evaluate(demos, kinds=KINDS, settings=FAST)
+    with ThreadPoolExecutor(2) as pool:  # jobs in another order, interleaved
+        pooled = evaluate(demos, kinds=KINDS, settings=FAST, map_fn=pool.map)
+    serial.pop("timings_s")
+    pooled.pop("timings_s")
+    assert json.dumps(serial, sort_keys=True) == json.dumps(pooled, sort_keys=True)
 
 
 def test_hard_negatives_are_other_candidates_of_the_same_tick(rng):
