@@ -694,9 +694,15 @@ def in_robot_frame(
     components = _packed_or_plain(components)
     packed = components if isinstance(components, _Packed) else _pack(components)
     lay = packed.layout
-    n = lay.n
-    if n == 0:
+    if lay.n == 0:
         return packed
+    return _components_of(_transform_stacked(packed, pose), lay)
+
+
+def _transform_stacked(packed: _Packed, pose: Pose2D) -> np.ndarray:
+    """The stacked coordinates of ``packed`` (a layout with ``n > 0``) seen from ``pose``:
+    (rows, 2) [m], read-only (the arithmetic of :func:`in_robot_frame`)."""
+    n = packed.layout.n
     c, s = math.cos(pose.yaw), math.sin(pose.yaw)
     x, y = packed.x, packed.y
     out = np.empty((len(x), 2))
@@ -708,20 +714,29 @@ def in_robot_frame(
     ox[n:] -= c * pose.x + s * pose.y  # positions are shifted, normals (rows < n) are not
     oy[n:] -= -s * pose.x + c * pose.y
     out.flags.writeable = False
-    result = _Packed(
-        SemanticComponent(
-            cid,
-            kind,
-            out[n + i],
-            _EMPTY if pts is None else out[pts],
-            _EMPTY if ends is None else out[ends],
-            width,
-            out[i],
-            source,
-        )
-        for i, (cid, kind, width, source, pts, ends) in enumerate(lay.items)
+    return out
+
+
+def _component_at(out: np.ndarray, lay: _Layout, i: int) -> SemanticComponent:
+    """Component ``i`` of the layout ``lay`` on the stacked coordinates ``out`` (views)."""
+    cid, kind, width, source, pts, ends = lay.items[i]
+    return SemanticComponent(
+        cid,
+        kind,
+        out[lay.n + i],
+        _EMPTY if pts is None else out[pts],
+        _EMPTY if ends is None else out[ends],
+        width,
+        out[i],
+        source,
     )
-    result.stacked, result.layout, result.x, result.y = out, lay, ox, oy
+
+
+def _components_of(out: np.ndarray, lay: _Layout) -> _Packed:
+    """Every component of ``lay`` on ``out``, packed (see :func:`in_robot_frame`)."""
+    result = _Packed(_component_at(out, lay, i) for i in range(lay.n))
+    result.stacked, result.layout = out, lay
+    result.x, result.y = out[:, 0], out[:, 1]
     return result
 
 
@@ -732,7 +747,11 @@ class RobotFrameComponents(Sequence[SemanticComponent]):
     equal to ``in_robot_frame(components, pose)``, but only computed (once) when an
     element is read or the sequence iterated. ``len`` does not compute it. Manual and
     reactive modes never look at the components, and a tick then does not pay for
-    58 transformed components (about 0.1-0.2 ms).
+    58 transformed components (about 0.1-0.2 ms). The contextual mode reads
+    :meth:`target_points` and the ~10 components it chooses by index: both come from the
+    transformed coordinates alone (one array operation), an integer index builds just
+    that component (equal to the materialised one, a new object per call), so such a
+    tick builds 11 components instead of 58. Iteration, slices and equality materialise.
 
     Parameters
     ----------
@@ -742,13 +761,14 @@ class RobotFrameComponents(Sequence[SemanticComponent]):
         Robot pose in the map frame ([m], [m], [rad]).
     """
 
-    __slots__ = ("_map", "_pose", "_seen")
+    __slots__ = ("_map", "_pose", "_seen", "_out")
     __hash__ = None  # type: ignore[assignment]  # like a tuple of array-holding components
 
     def __init__(self, components: Sequence[SemanticComponent], pose: Pose2D) -> None:
         self._map = components
         self._pose = pose
         self._seen: tuple[SemanticComponent, ...] | None = None
+        self._out: np.ndarray | None = None  # the transformed stacked coordinates
 
     @property
     def pose(self) -> Pose2D:
@@ -758,8 +778,22 @@ class RobotFrameComponents(Sequence[SemanticComponent]):
     def materialise(self) -> tuple[SemanticComponent, ...]:
         """The robot-frame components (computed on the first call)."""
         if self._seen is None:
-            self._seen = in_robot_frame(self._map, self._pose)
+            out = self._stacked()
+            if out is None:
+                self._seen = in_robot_frame(self._map, self._pose)
+            else:
+                self._seen = _components_of(out, self._map.layout)
         return self._seen
+
+    def _stacked(self) -> np.ndarray | None:
+        """The stacked robot-frame coordinates when the map components are packed with
+        at least one component (else None), computed once."""
+        if self._out is None:
+            packed = self._map
+            if not (isinstance(packed, _Packed) and packed.layout.n):
+                return None
+            self._out = _transform_stacked(packed, self._pose)
+        return self._out
 
     def target_points(self) -> np.ndarray:
         """Every component's intentional target point ``s`` (n, 2) [m] in the robot frame.
@@ -768,12 +802,24 @@ class RobotFrameComponents(Sequence[SemanticComponent]):
         :func:`target_points`, a few vector operations); for the contextual mode, which
         may not import ``sim`` and finds this method by duck typing.
         """
+        if self._seen is None:
+            out = self._stacked()
+            if out is not None:  # no component objects needed (58 of them in a room)
+                return _packed_target_points(out, self._map.layout)
         return target_points(self.materialise())
 
     def __len__(self) -> int:
         return len(self._map)
 
     def __getitem__(self, index):  # type: ignore[no-untyped-def]
+        if self._seen is None and isinstance(index, int | np.integer):
+            out = self._stacked()
+            if out is not None:  # one component, equal to the materialised one
+                n = self._map.layout.n
+                i = int(index)
+                if not -n <= i < n:
+                    raise IndexError("RobotFrameComponents index out of range")
+                return _component_at(out, self._map.layout, i % n)
         return self.materialise()[index]
 
     def __iter__(self) -> Iterator[SemanticComponent]:
@@ -804,17 +850,22 @@ def target_points(components: Sequence[SemanticComponent]) -> np.ndarray:
     faster for the 58 components (2,562 candidate points) of ``cluttered_room`` than
     one call per component (50 vs 170 us).
     """
-    components = _packed_or_plain(components)
+    if isinstance(components, RobotFrameComponents):
+        return components.target_points()
     if isinstance(components, _Packed) and components.layout.n:
-        lay = components.layout
-        candidates = components.stacked[lay.target_rows]  # (m, 2)
-        sq = np.einsum("ij,ij->i", candidates, candidates)
-        lowest = np.minimum.reduceat(sq, lay.target_starts)
-        counts = np.diff(np.append(lay.target_starts, len(sq)))
-        at_min = np.flatnonzero(sq == np.repeat(lowest, counts))
-        first = at_min[np.searchsorted(at_min, lay.target_starts)]  # first minimum per run
-        return candidates[first]
+        return _packed_target_points(components.stacked, components.layout)
     return np.array([c.target_point() for c in components], dtype=float).reshape(-1, 2)
+
+
+def _packed_target_points(stacked: np.ndarray, lay: _Layout) -> np.ndarray:
+    """:func:`target_points` of packed components from their stacked coordinates."""
+    candidates = stacked[lay.target_rows]  # (m, 2)
+    sq = np.einsum("ij,ij->i", candidates, candidates)
+    lowest = np.minimum.reduceat(sq, lay.target_starts)
+    counts = np.diff(np.append(lay.target_starts, len(sq)))
+    at_min = np.flatnonzero(sq == np.repeat(lowest, counts))
+    first = at_min[np.searchsorted(at_min, lay.target_starts)]  # first minimum per run
+    return candidates[first]
 
 
 def target_distances(components: Sequence[SemanticComponent]) -> np.ndarray:

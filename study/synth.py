@@ -17,8 +17,9 @@ How it works (decisions where the spec is silent):
   inherited through ``fork``); with one worker it runs in this process. The parent merges
   finished participants into the database strictly in participant order, one
   transaction per participant, with fresh row ids (:func:`merge_participant`), and then
-  deletes the temporary file. Recordings go straight to their final folder
-  (``<db stem>_recordings/<code>/`` by default); the merge rewrites
+  deletes the temporary file. The sample rows (the bulk of a participant) are copied
+  as the driver's plain tuples, their stored values unconverted. Recordings go straight
+  to their final folder (``<db stem>_recordings/<code>/`` by default); the merge rewrites
   ``trial.recording_path`` relative to the database's folder. The temporary files are
   opened without fsync on commit (``durable=False``): after a crash they are deleted and
   rebuilt anyway, and the merge into the study database is durable as always.
@@ -160,6 +161,33 @@ def _bulk(conn: Connection, table: str, rows: list[dict[str, Any]]) -> None:
             conn.execute(t.insert(), chunk)
 
 
+def _sample_columns() -> list[str]:
+    return [c.name for c in Base.metadata.tables["sample"].columns if c.name != "id"]
+
+
+def _sample_tuples(conn: Connection) -> list[tuple[Any, ...]]:
+    """Every sample row (without ``id``, in id order) as the driver's plain tuples: the
+    bulk of a participant (some 16,000 rows), copied without per-row dictionaries."""
+    columns = ", ".join(f'"{c}"' for c in _sample_columns())
+    return list(conn.exec_driver_sql(f"SELECT {columns} FROM sample ORDER BY id"))
+
+
+def _copy_samples(
+    conn: Connection, samples: list[tuple[Any, ...]], trial_ids: dict[int, int]
+) -> None:
+    """Insert ``samples`` (from :func:`_sample_tuples`) with their trial ids remapped; the
+    stored values are those of the source rows (SQLite's own types, unconverted)."""
+    names = _sample_columns()
+    at = names.index("trial_id")
+    columns = ", ".join(f'"{c}"' for c in names)
+    marks = ", ".join("?" * len(names))
+    sql = f"INSERT INTO sample ({columns}) VALUES ({marks})"
+    for i in range(0, len(samples), _CHUNK):
+        chunk = [(*r[:at], trial_ids[r[at]], *r[at + 1 :]) for r in samples[i : i + _CHUNK]]
+        if chunk:
+            conn.exec_driver_sql(sql, chunk)
+
+
 def merge_participant(src: Path, dst: Engine, *, src_folder: Path, dst_folder: Path) -> str:
     """Copy the one participant of the database ``src`` into ``dst`` in one transaction.
 
@@ -185,7 +213,7 @@ def merge_participant(src: Path, dst: Engine, *, src_folder: Path, dst_folder: P
             people = _rows(sc, "participant")
             sessions = _rows(sc, "session")
             trials = _rows(sc, "trial")
-            samples = _rows(sc, "sample")
+            samples = _sample_tuples(sc)
             events = _rows(sc, "event")
             questions = _rows(sc, "question")
             responses = _rows(sc, "response")
@@ -233,7 +261,7 @@ def merge_participant(src: Path, dst: Engine, *, src_folder: Path, dst_folder: P
         def tid(value: int | None) -> int | None:
             return None if value is None else trial_ids[value]
 
-        _bulk(conn, "sample", [{**r, "trial_id": trial_ids[r["trial_id"]]} for r in samples])
+        _copy_samples(conn, samples, trial_ids)
         _bulk(
             conn,
             "event",

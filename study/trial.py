@@ -17,7 +17,9 @@ written with status ``running`` before the first tick; samples, events and quest
 are buffered and written in one transaction at least once per simulated second
 (``flush_every_ticks = 20``); the end of a trial (the last rows, the outcome, the status
 and ``ended_at``) is one transaction. A crash therefore loses at most the last second of
-a trial that a resumed session marks aborted and runs again.
+a trial that a resumed session marks aborted and runs again. The per-second flushes are
+plain Core ``executemany`` inserts on a connection (the ORM session's bulk path cost
+about three times as much per flush, for the same rows).
 
 Decisions where the spec is silent:
 
@@ -72,8 +74,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from sqlalchemy import insert
-from sqlalchemy.engine import Engine
+from sqlalchemy.engine import Connection, Engine
 from sqlalchemy.orm import Session
 
 from autonomy.types import RobotModel
@@ -91,6 +92,10 @@ DT = 0.05  # [s] control tick (20 Hz)
 FLUSH_EVERY_TICKS = 20  # one transaction per simulated second at least
 _ZERO3 = np.zeros(3)
 _ZERO3.setflags(write=False)
+# Core inserts of the buffered rows (plain executemany, column defaults applied)
+_INSERT_SAMPLE = Sample.__table__.insert()
+_INSERT_EVENT = Event.__table__.insert()
+_INSERT_QUESTION = Question.__table__.insert()
 
 
 # ------------------------------------------------------------------------- clocks
@@ -315,13 +320,13 @@ class TrialWriter:
             }
         )
 
-    def _write(self, s: Session) -> None:
+    def _write(self, s: Session | Connection) -> None:
         if self.samples:
-            s.execute(insert(Sample), self.samples)
+            s.execute(_INSERT_SAMPLE, self.samples)
         if self.events:
-            s.execute(insert(Event), self.events)
+            s.execute(_INSERT_EVENT, self.events)
         if self.questions:
-            s.execute(insert(Question), self.questions)
+            s.execute(_INSERT_QUESTION, self.questions)
 
     def _clear(self) -> None:
         """Forget the buffered rows: only once their transaction has committed."""
@@ -329,8 +334,10 @@ class TrialWriter:
 
     def flush(self, tick: int) -> None:
         """Write what is buffered in one transaction (kept for a retry if it fails)."""
-        with Session(self.engine) as s, s.begin():
-            self._write(s)
+        # a Core connection: the same rows and transaction as an ORM session, about a
+        # third of the cost per flush (no unit of work for plain executemany inserts)
+        with self.engine.begin() as conn:
+            self._write(conn)
         self._clear()
         self.commits.append((tick, "flush"))
 

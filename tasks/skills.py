@@ -64,6 +64,13 @@ constant ``noise_tau_s``); a per-channel deadzone and quantisation of the axis t
 ``levels`` steps; and finally the robot's limits (``|v_xy| <= max_speed``,
 ``|omega| <= max_yaw_rate``). Every tick draws the same number of variates, so the
 output is a deterministic function of the Generator's state and the inputs.
+
+Speed (both run every tick of every synthetic participant): :class:`HumanStick` computes
+in scalar arithmetic, the same IEEE operations in the same order as its array form
+(``tests/test_skills.py`` keeps that form and compares bit for bit, signed zeros
+included); the guard tests only the laser points within :func:`_guard_reach` of the
+robot's centre, which cannot change its result (equal to the guard over all points up to
+the last bits of numpy's matrix product, whose rounding depends on the number of points).
 """
 
 from __future__ import annotations
@@ -255,25 +262,54 @@ def _turn_guard(omega: float, points: np.ndarray, s: SkillSettings) -> float:
 
 
 _GUARD_OFFSETS = np.linspace(-1.2, 1.2, 17)  # [rad] directions the guard may take instead
+_GUARD_COS = np.cos(_GUARD_OFFSETS)
+_GUARD_PENALTY = 0.02 * np.abs(_GUARD_OFFSETS)
+
+
+def _guard_reach(speed: float, s: SkillSettings) -> float:
+    """Distance [m] from the robot's centre beyond which no laser point can cap a motion at
+    ``speed`` [m/s] in any direction (see :func:`_guard`); ``inf`` for a gain <= 0."""
+    if not s.guard_gain > 0:
+        return math.inf
+    # a point in the corridor of unit d has |across| < half + margin and is free by
+    # along - front with along = sqrt(|p|^2 - across^2); front, half <= the circumradius
+    radius = math.hypot(s.half_length, s.half_width)
+    ahead = s.guard_stop + speed / s.guard_gain + radius + 0.01  # 0.01 m: rounding slack
+    side = radius + max(s.guard_margin, 0.0)
+    return math.sqrt(ahead * ahead + side * side)
 
 
 def _guard(u: np.ndarray, points: np.ndarray, s: SkillSettings) -> np.ndarray:
     """Keep the footprint off the laser points (robot frame): of the wanted direction
     and directions up to 1.2 rad either side, take the one with the most progress in
     the wanted direction once each is capped to ``guard_gain * (free - guard_stop)``
-    (people steer around what they would hit and slow down near it); rotation is kept."""
+    (people steer around what they would hit and slow down near it); rotation is kept.
+
+    Speed: only the points within :func:`_guard_reach` of the centre enter the corridor
+    test. A point farther away is free by at least ``guard_stop + speed / guard_gain``
+    (plus a slack) along every direction whose corridor it lies in, so it cannot cap the
+    speed: the capped speeds, hence the result, are exactly those over all points. The
+    turn guard's points (within the footprint's circumradius plus the margin) are a
+    subset of those, in the same order.
+    """
     if len(points) == 0:
         return u
-    u = np.array([u[0], u[1], _turn_guard(float(u[2]), points, s)])
     speed = float(np.hypot(u[0], u[1]))
+    reach = _guard_reach(speed, s)
+    if math.isfinite(reach):
+        points = points[np.einsum("ij,ij->i", points, points) < reach * reach]
+    u = np.array([u[0], u[1], _turn_guard(float(u[2]), points, s)])
     if speed < 1e-9:
         return u
     base = math.atan2(u[1], u[0])
     angles = base + _GUARD_OFFSETS
     dirs = np.column_stack((np.cos(angles), np.sin(angles)))
-    free = _free_all(points, dirs, s)
-    allowed = np.minimum(speed, np.maximum(0.0, s.guard_gain * (free - s.guard_stop)))
-    progress = allowed * np.cos(_GUARD_OFFSETS) - 0.02 * np.abs(_GUARD_OFFSETS)
+    if len(points):
+        free = _free_all(points, dirs, s)
+        allowed = np.minimum(speed, np.maximum(0.0, s.guard_gain * (free - s.guard_stop)))
+    else:  # nothing within reach: every direction at full speed (as with free = inf)
+        allowed = np.full(len(dirs), speed)
+    progress = allowed * _GUARD_COS - _GUARD_PENALTY
     best = int(np.argmax(progress))
     if progress[best] <= 0.0:
         return np.array([0.0, 0.0, u[2]])
@@ -662,6 +698,17 @@ class HumanStickSettings:
             )
 
 
+def _axis(value: float, full: float, s: HumanStickSettings) -> float:
+    """One channel of the stick: ``value / full`` clipped to [-1, 1], the deadzone, the
+    quantisation to ``levels`` steps; as ``numpy.clip``, ``numpy.where`` and
+    ``numpy.round`` (half to even, keeping the sign of a zero) do it on an array."""
+    axis = min(max(value / full, -1.0), 1.0)
+    if abs(axis) < s.deadzone:
+        return 0.0
+    scaled = axis * s.levels
+    return math.copysign(float(round(scaled)), scaled) / s.levels
+
+
 class HumanStick:
     """Turns ideal commands into human-like stick commands; deterministic per Generator.
 
@@ -675,8 +722,8 @@ class HumanStick:
         """Forget the past; ``rng`` draws all of this stick's noise from now on."""
         s = self.settings
         self._rng = rng
-        self._fifo: deque[np.ndarray] = deque([_ZERO] * s.delay_ticks)
-        self._noise = np.zeros(3)
+        self._fifo: deque[tuple[float, float, float]] = deque([(0.0, 0.0, 0.0)] * s.delay_ticks)
+        self._noise = (0.0, 0.0, 0.0)
         self._gain = 1.0
         self._episode_left = 0
 
@@ -696,10 +743,13 @@ class HumanStick:
         s = self.settings
         if not hasattr(self, "_rng"):
             raise RuntimeError("HumanStick.filter called before reset()")
-        z = self._rng.standard_normal(3)
-        onset, g, dur = self._rng.random(3)  # always three, to keep the stream aligned
-        u = np.array(u_ideal, dtype=float)
-        u[:2] *= s.preferred_speed / s.reference_speed
+        # scalar arithmetic (numpy on 3 numbers costs more than the numbers): the same
+        # IEEE operations in the same order as the array form, so the same result
+        z0, z1, z2 = self._rng.standard_normal(3).tolist()
+        onset, g, dur = self._rng.random(3).tolist()  # always three, to keep the stream aligned
+        u0, u1, u2 = (float(c) for c in u_ideal)
+        k = s.preferred_speed / s.reference_speed
+        u0, u1 = u0 * k, u1 * k
         if self._episode_left > 0:
             self._episode_left -= 1
         else:
@@ -709,19 +759,24 @@ class HumanStick:
                 self._gain = lo + g * (hi - lo)
                 d_lo, d_hi = s.overshoot_duration_s
                 self._episode_left = round((d_lo + dur * (d_hi - d_lo)) / s.dt)
-        u *= self._gain
-        self._fifo.append(u)
-        u = self._fifo.popleft()
+        gain = self._gain
+        self._fifo.append((u0 * gain, u1 * gain, u2 * gain))
+        u0, u1, u2 = self._fifo.popleft()
         a = math.exp(-s.dt / s.noise_tau_s)
-        self._noise = a * self._noise + math.sqrt(1 - a * a) * np.asarray(s.noise_sigma) * z
-        if np.any(np.abs(u) > 1e-9):  # a hand off the stick does not tremble
-            u = u + self._noise
-        full = np.array([s.max_speed, s.max_speed, s.max_yaw_rate])
-        axis = np.clip(u / full, -1.0, 1.0)
-        axis = np.where(np.abs(axis) < s.deadzone, 0.0, axis)
-        axis = np.round(axis * s.levels) / s.levels
-        out = axis * full
-        speed = float(np.hypot(out[0], out[1]))
-        if speed > s.max_speed:
-            out[:2] *= s.max_speed / speed
+        b = math.sqrt(1 - a * a)
+        n0, n1, n2 = self._noise
+        sg0, sg1, sg2 = s.noise_sigma
+        self._noise = (a * n0 + b * sg0 * z0, a * n1 + b * sg1 * z1, a * n2 + b * sg2 * z2)
+        if abs(u0) > 1e-9 or abs(u1) > 1e-9 or abs(u2) > 1e-9:  # a hand off the stick
+            n0, n1, n2 = self._noise  # does not tremble
+            u0, u1, u2 = u0 + n0, u1 + n1, u2 + n2
+        full_v, full_w = s.max_speed, s.max_yaw_rate
+        out0 = _axis(u0, full_v, s) * full_v
+        out1 = _axis(u1, full_v, s) * full_v
+        out2 = _axis(u2, full_w, s) * full_w
+        out = np.array((out0, out1, out2))
+        if out0 * out0 + out1 * out1 > s.max_speed * s.max_speed * (1.0 - 1e-9):
+            speed = float(np.hypot(out0, out1))  # numpy's hypot, as before
+            if speed > s.max_speed:
+                out[:2] *= s.max_speed / speed
         return out

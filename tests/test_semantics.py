@@ -510,3 +510,30 @@ def test_robot_frame_components_offer_their_target_points(rng):
         assert got.shape == (len(comps), 2)
         np.testing.assert_array_equal(got, want)  # bit for bit, ties: the first point
     assert RobotFrameComponents((), Pose2D(0.0, 0.0, 0.0)).target_points().shape == (0, 2)
+
+
+def test_robot_frame_components_give_single_components_and_targets_lazily(rng):
+    """The contextual mode reads the target points and the ~10 chosen components of 58:
+    neither builds the other components, and both equal the materialised ones."""
+    from sim.semantics import RobotFrameComponents
+
+    comps = derive_components(load_scenario("cluttered_room"))
+    n = len(comps)
+    for _ in range(4):
+        pose = Pose2D(*rng.uniform(-1.0, 12.0, 2), float(rng.uniform(-math.pi, math.pi)))
+        lazy = RobotFrameComponents(comps, pose)
+        eager = in_robot_frame(comps, pose)
+        np.testing.assert_array_equal(lazy.target_points(), [c.target_point() for c in eager])
+        for i in [int(k) for k in rng.integers(0, n, 6)] + [-1, -n, n - 1]:
+            got, want = lazy[i], eager[i]
+            assert (got.id, got.kind, got.source) == (want.id, want.kind, want.source)
+            for field in ("centre", "points", "ends", "normal"):
+                np.testing.assert_array_equal(getattr(got, field), getattr(want, field))
+        assert lazy[np.int64(3)].id == eager[3].id
+        assert "not yet computed" in repr(lazy)  # no index nor the targets built them all
+        with pytest.raises(IndexError):
+            lazy[n]
+        with pytest.raises(IndexError):
+            lazy[-n - 1]
+        assert [c.id for c in lazy[2:5]] == [c.id for c in eager[2:5]]  # slices: all
+        assert "not yet" not in repr(lazy) and lazy[4] is lazy.materialise()[4]

@@ -322,3 +322,123 @@ def test_human_stick_delays_quantises_and_has_a_deadzone(rng):
     )
     assert noisy[d:, 0].std() > 0.01
     assert abs(noisy[d:, 0].mean() - 0.3) < 0.08
+
+
+# --------------------------------------------------------------------------- speed forms
+# The stick and the guard run every tick of every synthetic participant, in a scalar form
+# and on the laser points near the robot only; the references below are their plain array
+# formulations, kept verbatim in their arithmetic.
+
+
+def _ref_stick_outputs(s: HumanStickSettings, seed: int, inputs: np.ndarray) -> np.ndarray:
+    from collections import deque
+
+    rng = np.random.default_rng(seed)
+    fifo = deque([np.zeros(3)] * s.delay_ticks)
+    noise, gain, left, out = np.zeros(3), 1.0, 0, []
+    for u_ideal in inputs:
+        z = rng.standard_normal(3)
+        onset, g, dur = rng.random(3)
+        u = np.array(u_ideal, dtype=float)
+        u[:2] *= s.preferred_speed / s.reference_speed
+        if left > 0:
+            left -= 1
+        else:
+            gain = 1.0
+            if onset < s.overshoot_rate_hz * s.dt:
+                lo, hi = s.overshoot_gain
+                gain = lo + g * (hi - lo)
+                d_lo, d_hi = s.overshoot_duration_s
+                left = round((d_lo + dur * (d_hi - d_lo)) / s.dt)
+        u *= gain
+        fifo.append(u)
+        u = fifo.popleft()
+        a = math.exp(-s.dt / s.noise_tau_s)
+        noise = a * noise + math.sqrt(1 - a * a) * np.asarray(s.noise_sigma) * z
+        if np.any(np.abs(u) > 1e-9):
+            u = u + noise
+        full = np.array([s.max_speed, s.max_speed, s.max_yaw_rate])
+        axis = np.clip(u / full, -1.0, 1.0)
+        axis = np.where(np.abs(axis) < s.deadzone, 0.0, axis)
+        axis = np.round(axis * s.levels) / s.levels
+        v = axis * full
+        speed = float(np.hypot(v[0], v[1]))
+        if speed > s.max_speed:
+            v[:2] *= s.max_speed / speed
+        out.append(v)
+    return np.array(out)
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    scale=st.sampled_from([0.0, 0.02, 0.3, 3.0]),
+    delay=st.integers(0, 6),
+    preferred=st.floats(0.1, 1.0),
+)
+def test_human_stick_equals_its_array_formulation_bit_for_bit(seed, scale, delay, preferred):
+    s = HumanStickSettings(preferred_speed=preferred, delay_ticks=delay, overshoot_rate_hz=1.0)
+    gen = np.random.default_rng(seed)
+    inputs = gen.normal(0.0, scale, (120, 3)) * gen.integers(0, 2, (120, 3))  # zeros too
+    got = _drive(HumanStick(s), seed, inputs)
+    want = _ref_stick_outputs(s, seed, inputs)
+    assert np.array_equal(got, want)
+    assert np.array_equal(np.signbit(got), np.signbit(want))  # signed zeros as well
+
+
+def _ref_guard(u: np.ndarray, points: np.ndarray, s: SkillSettings) -> np.ndarray:
+    from tasks.skills import _GUARD_OFFSETS, _free_all, _turn_guard
+
+    if len(points) == 0:
+        return u
+    u = np.array([u[0], u[1], _turn_guard(float(u[2]), points, s)])
+    speed = float(np.hypot(u[0], u[1]))
+    if speed < 1e-9:
+        return u
+    angles = math.atan2(u[1], u[0]) + _GUARD_OFFSETS
+    dirs = np.column_stack((np.cos(angles), np.sin(angles)))
+    free = _free_all(points, dirs, s)
+    allowed = np.minimum(speed, np.maximum(0.0, s.guard_gain * (free - s.guard_stop)))
+    progress = allowed * np.cos(_GUARD_OFFSETS) - 0.02 * np.abs(_GUARD_OFFSETS)
+    best = int(np.argmax(progress))
+    if progress[best] <= 0.0:
+        return np.array([0.0, 0.0, u[2]])
+    v = dirs[best] * allowed[best]
+    return np.array([v[0], v[1], u[2]])
+
+
+def test_guard_on_the_near_points_equals_the_guard_on_all_of_them(rng):
+    from tasks.skills import guard_command
+
+    for _ in range(400):
+        s = SkillSettings(
+            guard_margin=float(rng.uniform(0.0, 0.05)),
+            guard_stop=float(rng.uniform(0.01, 0.09)),
+            guard_gain=float(rng.choice([0.5, 1.5, 4.0])),
+        )
+        radius = float(rng.choice([0.6, 1.5, 4.0]))
+        angles = rng.uniform(-math.pi, math.pi, int(rng.integers(0, 600)))
+        ranges = rng.uniform(0.3, radius, len(angles))
+        points = np.column_stack((ranges * np.cos(angles), ranges * np.sin(angles)))
+        u = rng.normal(0.0, 0.5, 3) * rng.integers(0, 2, 3)
+        got = guard_command(u, points, s)
+        want = _ref_guard(np.asarray(u, dtype=float), points, s)
+        # equal up to the last bits of numpy's matrix product over different point counts
+        np.testing.assert_allclose(got, want, rtol=0.0, atol=1e-12)
+
+
+def test_points_beyond_the_guard_reach_change_nothing(rng):
+    from tasks.skills import _guard_reach, guard_command
+
+    s = SkillSettings(guard_margin=0.03, guard_stop=0.05)
+    for _ in range(100):
+        u = np.array([*rng.uniform(-0.6, 0.6, 2), rng.uniform(-0.5, 0.5)])
+        reach = _guard_reach(float(np.hypot(u[0], u[1])), s)
+        near_a = rng.uniform(-math.pi, math.pi, int(rng.integers(1, 40)))
+        near = np.column_stack(np.array([np.cos(near_a), np.sin(near_a)]) * 0.5)
+        far_a = rng.uniform(-math.pi, math.pi, 300)
+        far_r = reach + rng.uniform(0.0, 2.0, 300)
+        far = np.column_stack((far_r * np.cos(far_a), far_r * np.sin(far_a)))
+        assert np.array_equal(
+            guard_command(u, near, s), guard_command(u, np.vstack((far, near)), s)
+        )

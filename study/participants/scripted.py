@@ -92,6 +92,19 @@ class ScriptedSettings:
 # costs about 0.1 s, paid once per route instead of once per trial.
 _PATHS: dict[tuple[Any, ...], np.ndarray] = {}
 _MAX_PATHS = 256
+_AHEAD_CHUNK = 32  # path points per look for the lookahead point (_follow_path)
+
+
+def _norm(v: np.ndarray) -> float:
+    """``float(numpy.linalg.norm(v))`` of a 1-D float array, what it computes (the square
+    root of ``v.dot(v)``) without its dispatch overhead: the same number."""
+    return math.sqrt(v.dot(v))
+
+
+def _row_norms(rows: np.ndarray) -> np.ndarray:
+    """``numpy.linalg.norm(rows, axis=1)`` of a 2-D float array, what it computes: the
+    same numbers."""
+    return np.sqrt(np.add.reduce(rows * rows, axis=1))
 
 
 def _clip(value: float, limit: float) -> float:
@@ -399,7 +412,7 @@ class ScriptedParticipant:
         pts = leg.points
         pos = np.array([pose.x, pose.y])
         end = pts[-1]
-        to_end = float(np.linalg.norm(end - pos))
+        to_end = _norm(end - pos)
         yaw_goal = leg.final_yaw
         if leg.face is not None:
             yaw_goal = math.atan2(leg.face[1] - pose.y, leg.face[0] - pose.x)
@@ -408,12 +421,18 @@ class ScriptedParticipant:
             return None
         # progress: the nearest path point from the current one on, within a window
         window = pts[self._progress : self._progress + 40]
-        self._progress += int(np.argmin(np.linalg.norm(window - pos, axis=1)))
-        ahead = np.linalg.norm(pts[self._progress :] - pos, axis=1)
-        beyond = np.nonzero(ahead >= s.lookahead_m)[0]
-        target = pts[self._progress + int(beyond[0])] if len(beyond) else end
+        self._progress += int(np.argmin(_row_norms(window - pos)))
+        target = end
+        # the first path point from the current one on at least lookahead_m away, looked
+        # for in chunks (it is usually among the next few of hundreds); the same point
+        for lo in range(self._progress, len(pts), _AHEAD_CHUNK):
+            ahead = _row_norms(pts[lo : lo + _AHEAD_CHUNK] - pos)
+            beyond = np.flatnonzero(ahead >= s.lookahead_m)
+            if len(beyond):
+                target = pts[lo + int(beyond[0])]
+                break
         direction = target - pos
-        dist = float(np.linalg.norm(direction))
+        dist = _norm(direction)
         speed = min(s.speed, 0.9 * to_end + 0.03) if leg.stop else s.speed
         if dist > 1e-9:
             vel = direction / dist * min(speed, dist / 0.05)

@@ -315,6 +315,12 @@ def _segments_cross(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> bool:
 _Nearby = tuple[list[SemanticComponent], np.ndarray, np.ndarray, np.ndarray]
 
 
+def _norm(v: np.ndarray) -> float:
+    """``float(numpy.linalg.norm(v))`` of a 1-D float array, what it computes (the square
+    root of ``v.dot(v)``) without its dispatch overhead: the same number."""
+    return math.sqrt(v.dot(v))
+
+
 def _nearby(components: Sequence[SemanticComponent]) -> _Nearby | None:
     near = [c for c in components if c.kind in ("wall", "object") and len(c.points)]
     if not near:
@@ -374,7 +380,7 @@ class SyntheticParticipant:
         self._info: TrialInfo | None = None
         self._outcome: dict[str, Any] | None = None
         self._task: tuple[str, str] = ("", "")
-        self._passages: list[tuple[str, str, np.ndarray]] = []
+        self._passages: list[tuple[str, str, float, float]] = []  # kind, id, centre [m]
         self._expected_s = math.nan
         self._components: dict[str, tuple[SemanticComponent, ...]] = {}
         self._nearby: dict[str, _Nearby | None] = {}
@@ -470,7 +476,8 @@ class SyntheticParticipant:
             if c.kind in ("doorway", "gap") and len(c.ends) == 2:
                 if any(_segments_cross(p, c.ends[0], c.ends[1]) for p in polylines):
                     kind = "doorway_crossing" if c.kind == "doorway" else "gap_crossing"
-                    self._passages.append((kind, c.id, np.asarray(c.centre, dtype=float)))
+                    cx, cy = (float(v) for v in c.centre)
+                    self._passages.append((kind, c.id, cx, cy))
         self._inspect_id = ""
         self._dock_id = ""
         name = info.scenario.inspection_object
@@ -547,22 +554,25 @@ class SyntheticParticipant:
             return ("", "")
         leg = legs[driver._leg]
         pose = obs.pose
-        pos = np.array([pose.x, pose.y])
+        px, py = float(pose.x), float(pose.y)
         if not hasattr(leg, "points"):
             return ("object_inspection", self._inspect_id)
-        end = leg.points[-1]
-        if leg.face is not None and float(np.linalg.norm(end - pos)) < 1.5:
+        # distances as plain floats (numpy on 2-vectors costs more than the numbers)
+        ex, ey = float(leg.points[-1][0]) - px, float(leg.points[-1][1]) - py
+        if leg.face is not None and math.sqrt(ex * ex + ey * ey) < 1.5:
             return ("object_inspection", self._inspect_id)
-        if leg.final_yaw is not None and self._dock_id and float(np.linalg.norm(end - pos)) < 1.5:
+        if leg.final_yaw is not None and self._dock_id and math.sqrt(ex * ex + ey * ey) < 1.5:
             return ("robot_docking", self._dock_id)
-        for kind, cid, centre in self._passages:
-            if float(np.linalg.norm(centre - pos)) < 1.0:
+        for kind, cid, cx, cy in self._passages:
+            dx, dy = cx - px, cy - py
+            if math.sqrt(dx * dx + dy * dy) < 1.0:
                 return (kind, cid)
         near = self._near
         if near is None:
             return ("", "")
         comps, points, starts, tangents = near
-        d2 = np.einsum("ij,ij->i", points - pos, points - pos)
+        off = points - np.array((px, py))
+        d2 = np.einsum("ij,ij->i", off, off)
         per = np.minimum.reduceat(d2, starts)
         i = int(np.argmin(per))
         dist, comp = math.sqrt(float(per[i])), comps[i]
@@ -588,13 +598,14 @@ class SyntheticParticipant:
         pose = obs.pose
         pos = np.array([pose.x, pose.y])
         # what the robot did with the last command (robot frame, per tick)
-        if self._prev_pose is not None and np.any(self._prev_u[:2]):
+        prev_u = self._prev_u
+        if self._prev_pose is not None and (prev_u[0] != 0 or prev_u[1] != 0):
             moved = pos - self._prev_pose[:2]
             c, s = math.cos(pose.yaw), math.sin(pose.yaw)
             got = np.array([c * moved[0] + s * moved[1], -s * moved[0] + c * moved[1]]) / DT
             want = self._prev_u[:2]
-            norm = float(np.linalg.norm(want))
-            self._mismatch += float(min(1.0, np.linalg.norm(got - want) / max(norm, 0.05)))
+            norm = _norm(want)
+            self._mismatch += float(min(1.0, _norm(got - want) / max(norm, 0.05)))
             self._mismatch_n += 1
         self._prev_pose = np.array([pose.x, pose.y, pose.yaw])
         ideal = self._driver.act(obs, replace(screen, question=None)).u
@@ -626,12 +637,12 @@ class SyntheticParticipant:
     def _unstick(self, t: float, pos: np.ndarray, ideal: np.ndarray) -> np.ndarray:
         if t < self._unstick_until:
             return self._unstick_u
-        pushing = float(np.linalg.norm(ideal[:2])) > 0.05 or abs(float(ideal[2])) > 0.1
+        pushing = _norm(ideal[:2]) > 0.05 or abs(float(ideal[2])) > 0.1
         if not pushing or self._stuck_anchor is None:
             self._stuck_anchor = (t, pos)
             return ideal
         t0, p0 = self._stuck_anchor
-        if float(np.linalg.norm(pos - p0)) > 0.05:
+        if _norm(pos - p0) > 0.05:
             self._stuck_anchor = (t, pos)
             return ideal
         if t - t0 >= 2.0:
