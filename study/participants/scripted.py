@@ -95,7 +95,7 @@ _MAX_PATHS = 256
 _AHEAD_CHUNK = 32  # path points per look for the lookahead point (_follow_path)
 
 
-def _norm(v: np.ndarray) -> float:
+def fast_norm(v: np.ndarray) -> float:
     """``float(numpy.linalg.norm(v))`` of a 1-D float array, what it computes (the square
     root of ``v.dot(v)``) without its dispatch overhead: the same number."""
     return math.sqrt(v.dot(v))
@@ -412,7 +412,7 @@ class ScriptedParticipant:
         pts = leg.points
         pos = np.array([pose.x, pose.y])
         end = pts[-1]
-        to_end = _norm(end - pos)
+        to_end = fast_norm(end - pos)
         yaw_goal = leg.final_yaw
         if leg.face is not None:
             yaw_goal = math.atan2(leg.face[1] - pose.y, leg.face[0] - pose.x)
@@ -432,7 +432,7 @@ class ScriptedParticipant:
                 target = pts[lo + int(beyond[0])]
                 break
         direction = target - pos
-        dist = _norm(direction)
+        dist = fast_norm(direction)
         speed = min(s.speed, 0.9 * to_end + 0.03) if leg.stop else s.speed
         if dist > 1e-9:
             vel = direction / dist * min(speed, dist / 0.05)

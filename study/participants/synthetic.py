@@ -88,6 +88,7 @@ from study.participants.scripted import (
     ScriptedParticipant,
     ScriptedSettings,
     answer_is_correct,
+    fast_norm,
     uniform_answer,
 )
 from study.types import ParticipantInput, ScreenState, TrialInfo
@@ -313,12 +314,6 @@ def _segments_cross(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> bool:
 # walls and objects (map frame) for the per-tick "what is beside me" test: the components,
 # their surface points stacked (n, 2) [m], each one's first row, each wall's tangent [rad]
 _Nearby = tuple[list[SemanticComponent], np.ndarray, np.ndarray, np.ndarray]
-
-
-def _norm(v: np.ndarray) -> float:
-    """``float(numpy.linalg.norm(v))`` of a 1-D float array, what it computes (the square
-    root of ``v.dot(v)``) without its dispatch overhead: the same number."""
-    return math.sqrt(v.dot(v))
 
 
 def _nearby(components: Sequence[SemanticComponent]) -> _Nearby | None:
@@ -604,8 +599,8 @@ class SyntheticParticipant:
             c, s = math.cos(pose.yaw), math.sin(pose.yaw)
             got = np.array([c * moved[0] + s * moved[1], -s * moved[0] + c * moved[1]]) / DT
             want = self._prev_u[:2]
-            norm = _norm(want)
-            self._mismatch += float(min(1.0, _norm(got - want) / max(norm, 0.05)))
+            norm = fast_norm(want)
+            self._mismatch += float(min(1.0, fast_norm(got - want) / max(norm, 0.05)))
             self._mismatch_n += 1
         self._prev_pose = np.array([pose.x, pose.y, pose.yaw])
         ideal = self._driver.act(obs, replace(screen, question=None)).u
@@ -637,12 +632,12 @@ class SyntheticParticipant:
     def _unstick(self, t: float, pos: np.ndarray, ideal: np.ndarray) -> np.ndarray:
         if t < self._unstick_until:
             return self._unstick_u
-        pushing = _norm(ideal[:2]) > 0.05 or abs(float(ideal[2])) > 0.1
+        pushing = fast_norm(ideal[:2]) > 0.05 or abs(float(ideal[2])) > 0.1
         if not pushing or self._stuck_anchor is None:
             self._stuck_anchor = (t, pos)
             return ideal
         t0, p0 = self._stuck_anchor
-        if _norm(pos - p0) > 0.05:
+        if fast_norm(pos - p0) > 0.05:
             self._stuck_anchor = (t, pos)
             return ideal
         if t - t0 >= 2.0:
