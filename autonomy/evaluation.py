@@ -103,10 +103,11 @@ Decisions where the thesis and the spec are silent:
   evaluate --workers``) and the result is the same for any number of workers. A fold
   draws its negatives, SOGP subsamples and update orders, the user models' seeds and
   the forests' seeds from its own generator.
-- Speed: a fold job costs about 130 s of CPU (the SOGP about 100 s of it, half of that
-  its inner cross-validation), an introspection pair about 8 s: some 11 CPU-minutes,
-  run by ``asa evaluate`` in as many worker processes as CPUs. Measured: 14 min wall
-  with 2 workers on this 2-core machine while other jobs kept its load at 4-5.
+- Speed: a fold job costs about 120 s of CPU (the SOGP most of it, half of that its
+  inner cross-validation), an introspection pair about 7 s: some 10 CPU-minutes, run by
+  ``asa evaluate`` in as many worker processes as CPUs. Measured on this 2-core machine
+  with 2 workers: 6 min 3 s wall when quiet (612 s user CPU), 14 min while other jobs
+  kept its load at 4-5. Two runs gave identical results.
 - Result (``asa evaluate``, seed 0, 48 runs): F0.5 doorway / bypass / inspection / wall
   / macro: SOGP .746/.596/.889/.822/.763, SVM .770/.624/.826/.803/.756, KNN
   .725/.585/.845/.774/.732, RF .735/.603/.874/.818/.758. The SOGP leads the macro, object
