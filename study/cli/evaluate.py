@@ -186,7 +186,8 @@ def run_evaluation(
     "model",
     default=None,
     type=click.Path(path_type=Path),
-    help="Model file whose training recipe is evaluated (default: the shipped model).",
+    help="Model file whose demonstrations and way-point stride are used (default: the "
+    "shipped model).",
 )
 @click.option("--folds", default=5, show_default=True, type=int, help="Folds, by run.")
 @click.option("--seed", default=0, show_default=True, type=int, help="Seed of the folds etc.")
