@@ -895,38 +895,6 @@ def evaluate(
     }
 
 
-def introspection(
-    X: np.ndarray,
-    y: np.ndarray,
-    run: np.ndarray,
-    labels: Sequence[str],
-    *,
-    settings: EvaluationSettings,
-    rng: np.random.Generator,
-) -> dict[str, dict[str, float]]:
-    """Mean normalised entropy (Eq. 7.7) on unseen task types, per classifier and pair.
-
-    For every pair of task types: train on the pair's way points (standardised on them),
-    query with the other types' way points (features against the demonstrated target).
-
-    Returns
-    -------
-    dict
-        Method -> {``"<a>+<b>"`` -> mean entropy in [0, 1], ``"mean"`` -> over pairs}.
-        Empty when fewer than 3 task types are present.
-    """
-    if len(labels) < 3:
-        return {}
-    out: dict[str, dict[str, float]] = {m: {} for m in METHODS}
-    for pair in itertools.combinations(range(len(labels)), 2):
-        name, h = _introspect_pair(X, y, run, labels, pair, settings=settings, rng=rng)
-        for method in METHODS:
-            out[method][name] = h[method]
-    for method in METHODS:
-        out[method]["mean"] = float(np.mean(list(out[method].values())))
-    return out
-
-
 def _introspect_pair(
     X: np.ndarray,
     y: np.ndarray,
@@ -937,7 +905,10 @@ def _introspect_pair(
     settings: EvaluationSettings,
     rng: np.random.Generator,
 ) -> tuple[str, dict[str, float]]:
-    """One pair of :func:`introspection`: (``"<a>+<b>"``, method -> mean entropy)."""
+    """Introspection (Sec. 7.3.2, Table 7.9) of one pair of task types: train on the
+    pair's way points (standardised on them), query with the other types' way points
+    (features against the demonstrated target); (``"<a>+<b>"``, method -> mean
+    normalised entropy (7.7) in [0, 1])."""
     a, b = pair
     wp = way_points_of(run, settings.stride)
     train = wp[np.isin(y[wp], (a, b))]

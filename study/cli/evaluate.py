@@ -37,6 +37,7 @@ Decisions where the brief is silent:
 from __future__ import annotations
 
 import concurrent.futures as cf
+import contextlib
 import json
 import multiprocessing
 import os
@@ -159,16 +160,15 @@ def run_evaluation(
     demos = load_demonstrations(demonstrations)
     if workers < 1:
         raise ValueError(f"--workers: must be at least 1, got {workers}")
-    if workers == 1:
+    with contextlib.ExitStack() as stack:
+        map_fn = map
+        if workers > 1:
+            ctx = multiprocessing.get_context("spawn")
+            pool = cf.ProcessPoolExecutor(workers, mp_context=ctx, initializer=limit_blas_threads)
+            map_fn = stack.enter_context(pool).map
         return evaluate(
             demos, kinds=TARGET_KIND, settings=settings, model=str(model_path),
-            where=str(demonstrations),
-        )  # fmt: skip
-    ctx = multiprocessing.get_context("spawn")
-    with cf.ProcessPoolExecutor(workers, mp_context=ctx, initializer=limit_blas_threads) as pool:
-        return evaluate(
-            demos, kinds=TARGET_KIND, settings=settings, model=str(model_path),
-            where=str(demonstrations), map_fn=pool.map,
+            where=str(demonstrations), map_fn=map_fn,
         )  # fmt: skip
 
 
