@@ -56,10 +56,11 @@ Decisions where the thesis and the spec are silent:
   RF. Trained on the demonstrated target's features alone, nothing tells a classifier
   that another candidate's feature at the same tick is *not* the task, and most SOGP
   losses were wrong targets. Two per tick (of 6-11) keeps the run short.
-- Abstention: a candidate counts only when a task claims it -- SOGP: its largest
-  posterior mean is at least the claim threshold (0 is the thesis's rule, confidence
-  (5.10) >= 1/2; the threshold comes from the inner cross-validation below); a
-  baseline trained with negatives: its argmax class is not "none". When no candidate of
+- Abstention: a candidate counts only when a task claims it -- SOGP: a class claims
+  it when its posterior mean reaches the class's claim threshold (0 is the thesis's
+  rule, confidence (5.10) >= 1/2; the thresholds come from the inner cross-validation
+  below), and the largest claiming mean wins; a baseline trained with negatives: its
+  argmax class is not "none". When no candidate of
   a tick is claimed there is no prediction (a false negative, never a false positive:
   "better no assistance than wrong assistance", Sec. 7.4).
 - Inner grid search scored by macro F0.5 of the plain classification against the
@@ -69,21 +70,30 @@ Decisions where the thesis and the spec are silent:
   ``n_neighbors`` in {5, 15, 45} x ``weights`` in {uniform, distance}; RF (60 trees)
   ``max_depth`` in {None, 12} x ``min_samples_leaf`` in {1, 5}. The SOGP's kernel
   hyperparameters maximise the evidence (Sec. 7.3.1) under a length-scale cap; the cap
-  (``sogp_length_scale_grid``, 2.0 standard deviations) and the claim threshold
-  (``sogp_claim_grid``, 0 to 0.5 in steps of 0.1: the baselines' "none" class decides
-  abstention by the data, the threshold is the SOGP's counterpart) are chosen by the
-  same inner score (``sogp_inner_folds`` = 2 folds by run), on the training fold only;
-  the choices are reported per fold (``sogp_length_scale_cap``,
-  ``sogp_claim_threshold``).
-- Capacity (1200 basis vectors per GP) and evidence subsample (1000 points): the
-  evaluation's own, not the shipped model's (250 and 300, a run-time budget: a model
-  file under 5 MB and a cheap tick). It measures what the SOGP classifier can do, and
-  that rises with the capacity towards the full GP. Measured on fixed folds (seed 0,
-  negatives, cap 2.0, threshold 0), SOGP F0.5 doorway / bypass / inspection / wall:
-  capacity 250 (300 evidence points) .58/.49/.81/.71; 600 (1000) .66/.56/.86/.75; 1200
-  (1000) .70/.62/.88/.77; the full GP on all ~7,900 training points with the same
-  hyperparameters .74/.65/.88/.78. Caps 1.0, 3.0, 4.0 and 8.0 did worse than 2.0, and
-  one hard negative per tick worse than two.
+  (``sogp_length_scale_grid``, 2.0 standard deviations) and a claim threshold per task
+  type (``sogp_claim_grid``, 0 to 0.6 in steps of 0.1, chosen type by type by
+  coordinate ascent: the baselines' "none" class draws a boundary of its own against
+  each task class, the thresholds are the SOGP's counterpart) are chosen by the same
+  inner score (``sogp_inner_folds`` = 2 folds by run), on the training fold only; the
+  choices are reported per fold (``sogp_length_scale_cap``, ``sogp_claim_threshold``
+  -> {task type -> threshold}).
+- Capacity (1200 basis vectors per GP), evidence subsample (1000 points) and the
+  refined posterior (``sogp_refine``: after the online pass every GP's posterior is
+  re-estimated from all its training points on the basis the pass chose,
+  ``SparseOnlineGP.refine``, the fixed point of repeated online sweeps): the
+  evaluation's own, not the shipped model's (250 and 300, no refinement; a run-time
+  budget: a model file under 5 MB and a cheap tick). It measures what the SOGP
+  classifier can do, and that rises with the capacity towards the full GP. Measured on
+  fixed folds (seed 0, negatives, cap 2.0, threshold 0), SOGP F0.5 doorway / bypass /
+  inspection / wall: capacity 250 (300 evidence points) .58/.49/.81/.71; 600 (1000)
+  .66/.56/.86/.75; 1200 (1000) .70/.62/.88/.77; the full GP on all ~7,900 training
+  points with the same hyperparameters .74/.65/.88/.78. Caps 1.0, 3.0, 4.0 and 8.0 did
+  worse than 2.0, and one hard negative per tick worse than two. On the evaluation's
+  own folds, with the best threshold per type picked on the test folds (an upper
+  bound, for comparison only): capacity 600 .75/.58/.89/.82, refined .80/.60/.90/.82;
+  1200 refined .81/.61/.90/.83; the full GP .82/.63/.90/.83. On 7,986 points the
+  refinement costs 0.3 s per GP at capacity 600 and 0.9 s at 1200, the online pass 1.4 s
+  and 9.2 s.
 - Introspection probabilities: SOGP, the normalised confidences (5.10,
   ``SOGPClassifier.predict_proba``); SVM, Platt scaling (``CalibratedClassifierCV(...,
   method="sigmoid", ensemble=False)``, what ``SVC(probability=True)`` did) with the grid's
@@ -93,27 +103,31 @@ Decisions where the thesis and the spec are silent:
   {pair -> mean entropy}}; ``sogp_at_least_baselines`` -> {task type -> whether the
   SOGP's F0.5 is at least every baseline's}.
 - SOGP recogniser along a run: the fold's SOGP classifier with Eq. (5.8) over the tick's
-  candidates (as the contextual mode recognises); the decision is null when the winner's
-  posterior mean is below the fold's claim threshold (no class claims the feature). The
+  candidates (as the contextual mode recognises), among the entries that reach their
+  class's claim threshold; the decision is null when none does. The
   Bayes filter's user models (BIC, Eq. 4.11) are fitted on every tick of the training
   fold's runs per task type; the baseline uses its default scales.
 - Jobs: every fold and every introspection pair is an independent job with its own
   ``numpy.random.SeedSequence`` spawned from ``seed`` (the folds' assignment has the
   first), so :func:`evaluate`'s ``map_fn`` may run them in worker processes (``asa
-  evaluate --workers``) and the result is the same for any number of workers. A fold
-  draws its negatives, SOGP subsamples and update orders, the user models' seeds and
-  the forests' seeds from its own generator.
-- Speed: a fold job costs about 120 s of CPU (the SOGP most of it, half of that its
-  inner cross-validation), an introspection pair about 7 s: some 10 CPU-minutes, run by
+  evaluate --workers``) and the result is the same for any number of workers. Within a
+  job, the negatives, the user models and every classifier draw from generators of
+  their own (spawned from the job's), so one classifier's settings never change
+  another's draws (they did: a change to the SOGP moved the forests' seeds, and their
+  F0.5 by up to .015).
+- Speed: a fold job costs about 150 s of CPU (the SOGP most of it, half of that its
+  inner cross-validation), an introspection pair about 8 s: some 14 CPU-minutes, run by
   ``asa evaluate`` in as many worker processes as CPUs. Measured on this 2-core machine
-  with 2 workers: 6 min 3 s wall when quiet (612 s user CPU), 14 min while other jobs
-  kept its load at 4-5. Two runs gave identical results.
+  with 2 workers, quiet: 7 min 57 s wall (13 min 19 s user CPU).
 - Result (``asa evaluate``, seed 0, 48 runs): F0.5 doorway / bypass / inspection / wall
-  / macro: SOGP .746/.596/.889/.822/.763, SVM .770/.624/.826/.803/.756, KNN
-  .725/.585/.845/.774/.732, RF .735/.603/.874/.818/.758. The SOGP leads the macro, object
-  inspection and wall following; it trails the SVM on doorway crossing and the SVM and
-  RF on object bypass by .02-.03. Introspection entropy SOGP .52 (highest), RF .51, SVM
-  .43, KNN .16.
+  / macro: SOGP .785/.640/.891/.815/.783, SVM .768/.649/.830/.810/.764, KNN
+  .720/.587/.841/.774/.731, RF .738/.617/.858/.828/.760. The SOGP leads the macro,
+  doorway crossing and object inspection; it trails the SVM on object bypass by .009 and
+  the RF on wall following by .013. Those gaps are within what the random draws alone
+  move: drawing the hard negatives and the forests' seeds afresh (the same code
+  otherwise) moved the SVM's bypass F0.5 from .624 to .649 and the RF's wall F0.5 from
+  .818 to .828. Introspection entropy RF .51, SOGP .49, SVM .43, KNN .16 (with the
+  previous draws: SOGP .52, RF .51).
 """
 
 from __future__ import annotations
@@ -162,8 +176,9 @@ class EvaluationSettings:
     negatives: bool = True  # hard negatives (other candidates) for every classifier
     negatives_per_tick: int = 2  # wrong candidates drawn per training way point
     sogp_length_scale_grid: tuple[float, ...] = (2.0,)  # inner-CV choice of the cap
-    sogp_claim_grid: tuple[float, ...] = (0.0, 0.1, 0.2, 0.3, 0.4, 0.5)  # inner-CV threshold
+    sogp_claim_grid: tuple[float, ...] = (0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6)  # per class
     sogp_inner_folds: int = 2
+    sogp_refine: bool = True  # re-estimate each GP on its basis after the online pass
 
     def __post_init__(self) -> None:
         for name in (
@@ -381,23 +396,26 @@ class _Fitted:
         classes: np.ndarray,
         none: int | None = None,
         *,
-        claim: float = 0.0,
+        claim: float | Sequence[float] = 0.0,
     ):
         self.method = method
         self.model = model
-        self.claim = float(claim)  # SOGP: the least posterior mean that claims a feature
+        # SOGP: per class, the least posterior mean with which it claims a feature
+        self.claim = np.broadcast_to(np.asarray(claim, dtype=float), (len(classes),)).copy()
         self.classes = classes
         self.none_col = None if none is None else int(np.flatnonzero(classes == none)[0])
         self.task_cols = np.flatnonzero(classes != none) if none is not None else None
         self.task_classes = classes if none is None else classes[self.task_cols]
 
     def task_scores(self, Z: np.ndarray) -> np.ndarray:
-        """(n, c_tasks) scores of the task classes; NaN rows where no task claims the
-        feature (SOGP: every posterior mean below ``claim``, 0 being every confidence (5.10)
-        below 1/2; a baseline with negatives: its argmax is the "none" class)."""
+        """(n, c_tasks) scores of the task classes, NaN where the class does not claim
+        the feature (SOGP: its posterior mean is below its ``claim`` threshold, 0 being a
+        confidence (5.10) below 1/2), and whole rows NaN where no task claims it (a
+        baseline with negatives: its argmax is the "none" class)."""
         S = np.asarray(self.scores(Z), dtype=float)
         if self.method == "sogp":
-            claimed = np.max(S, axis=1) >= self.claim
+            S = np.where(S >= self.claim, S, np.nan)
+            claimed = ~np.all(np.isnan(S), axis=1)
         elif self.none_col is not None:
             claimed = np.argmax(S, axis=1) != self.none_col
         else:
@@ -446,7 +464,7 @@ def fit_method(
     if method == "sogp":
         classes, yi = np.unique(y, return_inverse=True)
         caps = settings.sogp_length_scale_grid or (settings.max_length_scale,)
-        cap, claim = float(caps[0]), float(settings.sogp_claim_grid[0])
+        cap, claim = float(caps[0]), np.full(len(classes), settings.sogp_claim_grid[0])
         if tune and (len(caps) > 1 or len(settings.sogp_claim_grid) > 1):
             cap, claim = _sogp_inner_cv(
                 Z,
@@ -462,8 +480,9 @@ def fit_method(
             hyper_points=settings.hyper_points,
             restarts=settings.hyper_restarts,
             max_length_scale=cap,
+            refine=settings.sogp_refine,
         ).fit(Z, yi, rng=rng, negatives=negatives if has_neg else None)
-        return _Fitted(method, clf, classes[clf.classes_], claim=claim)
+        return _Fitted(method, clf, classes[clf.classes_], claim=claim[clf.classes_])
     none = None
     if has_neg:
         none = int(np.max(y)) + 1
@@ -510,33 +529,35 @@ def _sogp_inner_cv(
     *,
     settings: EvaluationSettings,
     rng: np.random.Generator,
-) -> tuple[float, float]:
-    """The SOGP's length-scale cap (``settings.sogp_length_scale_grid``) and claim
-    threshold (``settings.sogp_claim_grid``) with the best macro F0.5 (task types and
-    "none") in an inner ``StratifiedGroupKFold`` by run on the training fold: the
-    baselines' grid-search score, with the SOGP's own decision (the largest posterior
-    mean, "none" when it is below the threshold). One fit per cap and inner split; the
-    thresholds are applied to its scores. Ties go to the earlier grid entry."""
+) -> tuple[float, np.ndarray]:
+    """The SOGP's length-scale cap (``settings.sogp_length_scale_grid``) and its claim
+    threshold per class (``settings.sogp_claim_grid``; (c,) for the classes ``0..c-1`` of
+    ``y``) with the best macro F0.5 (task types and "none") in an inner
+    ``StratifiedGroupKFold`` by run on the training fold: the baselines' grid-search
+    score, with the SOGP's own decision (the largest posterior mean among the classes
+    that reach their threshold; "none" when no class does). One fit per cap and inner
+    split; the thresholds are applied to its scores and chosen class by class
+    (coordinate ascent from all at the first threshold, two sweeps). Ties go to the
+    earlier grid entry."""
     has_neg = negatives is not None and len(negatives) > 0
     none = int(np.max(y)) + 1
     Za = np.concatenate((Z, negatives)) if has_neg else Z
     ya = np.concatenate((y, np.full(len(negatives), none))) if has_neg else y
     ga = np.concatenate((groups, negative_groups)) if has_neg else groups
     caps = settings.sogp_length_scale_grid or (settings.max_length_scale,)
-    claims = settings.sogp_claim_grid
+    grid = np.asarray(settings.sogp_claim_grid, dtype=float)
+    first = np.full(none, grid[0])
     n_groups = len(np.unique(ga))
     if n_groups < 2:
-        return float(caps[0]), float(claims[0])
+        return float(caps[0]), first
     cv = StratifiedGroupKFold(n_splits=min(settings.sogp_inner_folds, n_groups))
     splits = list(cv.split(Za, ya, groups=ga))
     labels = list(range(none + (1 if has_neg else 0)))
-    score = np.zeros((len(caps), len(claims)))
-    used = 0
+    fits: list[list[tuple[np.ndarray, np.ndarray]]] = [[] for _ in caps]
     for tr, va in splits:
         pos = tr[ya[tr] != none]
-        if len(pos) < 2:
+        if len(np.unique(ya[pos])) < 2:
             continue
-        used += 1
         neg = tr[ya[tr] == none]
         for i, cap in enumerate(caps):
             clf = SOGPClassifier(
@@ -544,19 +565,38 @@ def _sogp_inner_cv(
                 hyper_points=settings.hyper_points,
                 restarts=settings.hyper_restarts,
                 max_length_scale=float(cap),
+                refine=settings.sogp_refine,
             ).fit(Za[pos], ya[pos], rng=rng, negatives=Za[neg] if len(neg) else None)
-            means = clf.scores(Za[va])
-            best = clf.classes_[np.argmax(means, axis=1)]
-            top = means.max(axis=1)
-            for j, claim in enumerate(claims):
-                pred = np.where(top >= claim, best, none)
-                score[i, j] += fbeta_score(
-                    ya[va], pred, beta=0.5, average="macro", labels=labels, zero_division=0
-                )
-    if used == 0:
-        return float(caps[0]), float(claims[0])
-    i, j = np.unravel_index(int(np.argmax(score)), score.shape)  # first maximum: ties early
-    return float(caps[i]), float(claims[j])
+            means = np.full((len(va), none), -np.inf)  # a class the split lacks never wins
+            means[:, clf.classes_] = clf.scores(Za[va])
+            fits[i].append((means, ya[va]))
+    if not fits[0]:
+        return float(caps[0]), first
+
+    def score(i: int, claim: np.ndarray) -> float:
+        total = 0.0
+        for means, truth in fits[i]:
+            M = np.where(means >= claim, means, -np.inf)
+            pred = np.where(np.isfinite(M.max(axis=1)), np.argmax(M, axis=1), none)
+            total += fbeta_score(
+                truth, pred, beta=0.5, average="macro", labels=labels, zero_division=0
+            )
+        return total
+
+    best: tuple[float, int, np.ndarray] = (-np.inf, 0, first)
+    for i in range(len(caps)):
+        claim = first.copy()
+        for _sweep in range(2):
+            for c in range(none):
+                values = []
+                for t in grid:
+                    claim[c] = t
+                    values.append(score(i, claim))
+                claim[c] = grid[int(np.argmax(values))]  # first maximum: ties early
+        value = score(i, claim)
+        if value > best[0]:
+            best = (value, i, claim)
+    return float(caps[best[1]]), best[2]
 
 
 def hard_negatives(
@@ -662,7 +702,9 @@ def _fold_job(data: _Data, k: int, seed: np.random.SeedSequence) -> dict[str, An
     """Classification and trajectory rates of held-out fold ``k``."""
     settings, labels = data.settings, data.labels
     run, task, target, off, ids = data.run, data.task, data.target, data.off, data.ids
-    rng = np.random.default_rng(seed)
+    # One generator each for the negatives, the user models and every classifier, so a
+    # classifier's settings never change another's draws (e.g. the forests' seeds).
+    rng, user_rng, *method_rngs = np.random.default_rng(seed).spawn(2 + len(METHODS))
     t0 = time.perf_counter()
     wp = way_points_of(run, settings.stride)
     test_ticks = way_points_of(run, settings.test_stride)
@@ -682,14 +724,14 @@ def _fold_job(data: _Data, k: int, seed: np.random.SeedSequence) -> dict[str, An
     out: dict[str, Any] = {"truth": task[ticks].tolist(), "pred": {}, "ok": {}}
     rows_needed = np.concatenate([np.arange(off[i], off[i + 1]) for i in ticks])
     fitted: dict[str, _Fitted] = {}
-    for method in METHODS:
+    for method, method_rng in zip(METHODS, method_rngs, strict=True):
         f = fitted[method] = fit_method(
             method,
             Ztr,
             ytr,
             gtr,
             settings=settings,
-            rng=rng,
+            rng=method_rng,
             negatives=Zneg,
             negative_groups=gneg,
         )
@@ -703,7 +745,7 @@ def _fold_job(data: _Data, k: int, seed: np.random.SeedSequence) -> dict[str, An
         out["pred"][method], out["ok"][method] = pred, ok
     sogp = fitted["sogp"]
     out["cap"] = float(sogp.model.max_length_scale)
-    out["claim"] = sogp.claim
+    out["claim"] = {labels[int(c)]: float(t) for c, t in zip(sogp.classes, sogp.claim, strict=True)}
     t1 = time.perf_counter()
     # trajectory rates on every tick of the held-out runs
     train_ticks = np.flatnonzero(data.fold != k)  # every tick: the user models need points
@@ -715,7 +757,7 @@ def _fold_job(data: _Data, k: int, seed: np.random.SeedSequence) -> dict[str, An
         for c in labels
         if np.count_nonzero(task[train_ticks] == c) >= 10  # types the fold can model
     }
-    user = fit_user_models(feats, rng=rng)
+    user = fit_user_models(feats, rng=user_rng)
     filt = BayesFilterRecogniser(user, {c: data.kinds[c] for c in feats})
     base = ExponentialBaseline({c: data.kinds[c] for c in labels})
     rates: dict[str, list[dict[str, float]]] = {r: [] for r in RECOGNISERS}
@@ -724,12 +766,12 @@ def _fold_job(data: _Data, k: int, seed: np.random.SeedSequence) -> dict[str, An
         truth_r = [(task[i], target[i]) for i in ticks_r]
         rows_r = np.concatenate([np.arange(off[i], off[i + 1]) for i in ticks_r])
         S = np.full((len(data.X_cand), len(sogp.classes)), np.nan)
-        S[rows_r] = sogp.scores(Zc[rows_r])
+        S[rows_r] = sogp.task_scores(Zc[rows_r])  # unclaimed entries NaN
         rows, cols = _decide(S, off, ticks_r)
-        dec_sogp: list[tuple[str, str] | None] = []
-        for rr, c in zip(rows, cols, strict=True):
-            claimed = rr >= 0 and S[rr, c] >= sogp.claim  # claim 0: confidence (5.10) >= 1/2
-            dec_sogp.append((labels[int(sogp.classes[c])], ids[rr]) if claimed else None)
+        dec_sogp: list[tuple[str, str] | None] = [
+            (labels[int(sogp.classes[c])], ids[rr]) if rr >= 0 else None
+            for rr, c in zip(rows, cols, strict=True)
+        ]
         filt.reset()
         base.reset()
         dec_f, dec_b = [], []
@@ -916,14 +958,14 @@ def _introspect_pair(
     scaler = FeatureScaler().fit(X[train])
     Ztr, Zte = scaler.transform(X[train]), scaler.transform(X[test])
     h: dict[str, float] = {}
-    for method in METHODS:
+    for method, method_rng in zip(METHODS, rng.spawn(len(METHODS)), strict=True):
         f = fit_method(
             method,
             Ztr,
             y[train],
             run[train],
             settings=settings,
-            rng=rng,
+            rng=method_rng,
             probability=True,
             tune=False,
         )

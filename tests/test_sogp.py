@@ -171,6 +171,69 @@ def test_deletions_stay_close_to_full_gp_3d(rng):
     assert np.max(np.abs(var - var_f)) < 0.02
 
 
+def _projected_process(X, y, B, Xq, ls, sf2, sn2):
+    """Projected-process (DTC) predictive mean and variance on basis B, written
+    independently: Quinonero-Candela & Rasmussen (2005), Sec. 5."""
+    Kbb = _kernel(B, B, ls, sf2)
+    Kbn = _kernel(B, X, ls, sf2)
+    Kqb = _kernel(Xq, B, ls, sf2)
+    S = np.linalg.inv(sn2 * Kbb + Kbn @ Kbn.T)
+    mean = Kqb @ S @ Kbn @ y
+    var = (
+        sf2
+        - np.einsum("ij,ji->i", Kqb, np.linalg.solve(Kbb, Kqb.T))
+        + sn2 * np.einsum("ij,jk,ik->i", Kqb, S, Kqb)
+        + sn2
+    )
+    return mean, var
+
+
+def test_refine_equals_the_projected_process_on_its_basis(rng):
+    X = rng.uniform(-2.0, 2.0, size=(300, 2))
+    y = np.sin(2 * X[:, 0]) + X[:, 1] ** 2 + 0.1 * rng.normal(size=300)
+    ls, sf2, sn2 = np.array([0.7, 1.1]), 1.0, 0.01
+    gp = SparseOnlineGP(capacity=30, length_scales=ls, signal_var=sf2, noise_var=sn2).fit(X, y)
+    basis = gp.basis_.copy()
+    Xq = rng.uniform(-2.0, 2.0, size=(60, 2))
+    online_err = np.abs(gp.predict(Xq)[0] - _projected_process(X, y, basis, Xq, ls, sf2, sn2)[0])
+    gp.refine(X, y)
+    np.testing.assert_array_equal(gp.basis_, basis)  # the basis is kept
+    mean, var = gp.predict(Xq)
+    mean_p, var_p = _projected_process(X, y, basis, Xq, ls, sf2, sn2)
+    np.testing.assert_allclose(mean, mean_p, atol=1e-7)
+    np.testing.assert_allclose(var, var_p, atol=1e-7)
+    assert online_err.max() > 1e-3  # one online pass is not yet the fixed point
+    # The refined posterior is a valid C&O state: online updates go on from it.
+    gp.update(X[0], y[0])
+    assert np.all(np.isfinite(gp.predict(Xq)[0]))
+
+
+def test_refine_with_every_point_a_basis_vector_is_the_full_gp(rng):
+    X = rng.uniform(0.0, 4.0, size=(50, 3))
+    y = _smooth_3d(X) + 0.1 * rng.normal(size=50)
+    ls, sf2, sn2 = np.array([1.0, 1.5, 0.8]), 1.3, 0.05
+    gp = SparseOnlineGP(capacity=100, length_scales=ls, signal_var=sf2, noise_var=sn2).fit(X, y)
+    assert gp.n_basis_ == 50
+    gp.refine(X, y)
+    Xq = np.vstack([X[:10], rng.uniform(-1.0, 5.0, size=(40, 3))])
+    mean, var = gp.predict(Xq)
+    mean_f, var_f = _full_gp(X, y, Xq, ls, sf2, sn2)
+    np.testing.assert_allclose(mean, mean_f, atol=1e-6)
+    np.testing.assert_allclose(var, var_f, atol=1e-6)
+
+
+def test_refine_rejects_bad_data(rng):
+    gp = SparseOnlineGP(capacity=5, length_scales=np.ones(2), signal_var=1.0, noise_var=0.1)
+    X = rng.normal(size=(10, 2))
+    gp.fit(X, X[:, 0])
+    with pytest.raises(ValueError, match="X: expected shape"):
+        gp.refine(X[:, :1], X[:, 0])
+    with pytest.raises(ValueError, match="y: expected 10 targets"):
+        gp.refine(X, X[:5, 0])
+    with pytest.raises(ValueError, match="finite"):
+        gp.refine(X, np.full(10, np.nan))
+
+
 def test_variance_never_below_noise(rng):
     X = rng.normal(size=(300, 2))
     y = np.sign(X[:, 0])

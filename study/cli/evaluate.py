@@ -11,9 +11,10 @@ Decisions where the brief is silent:
 - ``--model`` names the model whose demonstrations and recipe are evaluated: the
   cross-validation trains a fresh SOGP per fold (a model trained on all runs would be
   tested on its own training data), on the model's way-point ``stride``. Its capacity,
-  evidence subsample and length-scale cap are the evaluation's own
-  (:class:`autonomy.evaluation.EvaluationSettings`: capacity 1200, 1000 points, cap and
-  claim threshold by inner cross-validation): the shipped model's capacity (250) is a
+  evidence subsample, length-scale cap and claim thresholds are the evaluation's own
+  (:class:`autonomy.evaluation.EvaluationSettings`: capacity 1200 with the posterior
+  refined on the chosen basis, 1000 points, the cap and a claim threshold per task type
+  by inner cross-validation): the shipped model's capacity (250) is a
   run-time budget (a model file under 5 MB, a cheap tick), while the evaluation measures
   what the classifier can do, which rises with the capacity towards the full GP (see
   the module docstring of :mod:`autonomy.evaluation`). One evidence restart per GP. The
