@@ -22,6 +22,7 @@ from autonomy.evaluation import (
     format_report,
     hard_negatives,
     run_folds,
+    summarise_repeats,
     way_points_of,
 )
 from autonomy.features import task_features
@@ -80,9 +81,12 @@ def synthetic_demos(rng: np.random.Generator, runs: int = 4, steps: int = 30):
 
 @pytest.fixture(scope="module")
 def result():
+    return evaluate(_result_demos(), kinds=KINDS, settings=FAST, model="synthetic")
+
+
+def _result_demos():
     seed = int(os.environ.get("ASA_TEST_SEED", "20261123"))  # the conftest's seed, once
-    demos = synthetic_demos(np.random.default_rng(seed), runs=3, steps=25)
-    return evaluate(demos, kinds=KINDS, settings=FAST, model="synthetic")
+    return synthetic_demos(np.random.default_rng(seed), runs=3, steps=25)
 
 
 def test_candidate_features_equal_task_features_tick_by_tick(rng):
@@ -168,6 +172,30 @@ def test_the_sogp_recognises_synthetic_tasks_and_targets_well(result):
     assert result["trajectory_rates"]["sogp"]["success"] > 0.5
 
 
+def test_repeats_summarise_the_f05_over_seeds(result):
+    other = evaluate(_result_demos(), kinds=KINDS, settings=replace(FAST, seed=FAST.seed + 1))
+    rep = summarise_repeats([result, other])
+    assert rep["seeds"] == [FAST.seed, FAST.seed + 1]
+    for m in METHODS:
+        for c, mean in rep["f05_mean"][m].items():
+            pair = [result["f05"][m][c], other["f05"][m][c]]
+            assert mean == pytest.approx(np.mean(pair))
+            assert rep["f05_sd"][m][c] == pytest.approx(abs(pair[0] - pair[1]) / np.sqrt(2))
+    for c, share in rep["sogp_at_least_baselines"].items():
+        wins = [result["sogp_at_least_baselines"][c], other["sogp_at_least_baselines"][c]]
+        assert share == sum(wins) / 2
+    for rates in rep["trajectory_rates_mean"].values():
+        assert sum(rates.values()) == pytest.approx(1.0)
+    one = summarise_repeats([result])
+    assert one["f05_mean"] == result["f05"] and all(
+        v == 0.0 for sd in one["f05_sd"].values() for v in sd.values()
+    )
+    text = format_report({**result, "repeats": rep})
+    assert "over 2 seeds" in text and "+-" in text
+    with pytest.raises(ValueError, match="at least one"):
+        summarise_repeats([])
+
+
 def test_bad_settings_are_refused(rng):
     with pytest.raises(ValueError, match="--folds"):
         EvaluationSettings(folds=1)
@@ -206,6 +234,7 @@ def recorded(tmp_path_factory):
         (["--demonstrations", "{demos}", "--model", "{tmp}/bad.npz"], "bad.npz"),
         (["--model", "{tmp}/bad.npz"], "bad.npz"),  # no demonstrations: nothing recorded
         (["--demonstrations", "{demos}", "--workers", "0"], "--workers"),
+        (["--demonstrations", "{demos}", "--repeats", "0"], "--repeats: must be at least 1"),
     ],
 )
 def test_asa_evaluate_bad_input_is_one_line_and_exit_2(args, needle, recorded, tmp_path, capsys):
@@ -314,10 +343,11 @@ def test_cache_records_once_and_checks_the_hash(recorded, tmp_path, monkeypatch)
 def test_asa_evaluate_runs_on_recorded_demonstrations(recorded, tmp_path, capsys):
     out = tmp_path / "eval.json"
     main(["evaluate", "--demonstrations", str(recorded), "--folds", "2", "--json"]
-         + ["--out", str(out)])  # fmt: skip
+         + ["--repeats", "2", "--out", str(out)])  # fmt: skip
     printed = json.loads(capsys.readouterr().out)
     saved = json.loads(out.read_text())
     assert printed == saved
     for key in ("f05", "confusion", "introspection_entropy", "trajectory_rates"):
         assert key in saved
     assert saved["n_runs"] == 4 and saved["folds"] == 2 and saved["seed"] == 0
+    assert saved["repeats"]["seeds"] == [0, 1]  # the top level is the first seed's
