@@ -426,8 +426,8 @@ class SparseOnlineGP:
         Qb = cho_solve(factor, np.eye(b), check_finite=False)
         self._Q[:b, :b] = np.triu(Qb)
 
-    def fit(self, X: np.ndarray, y: np.ndarray) -> SparseOnlineGP:
-        """Reset, then absorb the rows of ``X`` (n, d) with targets ``y`` (n,) in order."""
+    def _checked(self, X: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``X`` (n, d) and ``y`` (n,) as finite float arrays; ValueError naming the bad one."""
         X = np.asarray(X, dtype=float)
         y = np.asarray(y, dtype=float).reshape(-1)
         d = self.length_scales.size
@@ -437,6 +437,11 @@ class SparseOnlineGP:
             raise ValueError(f"y: expected {X.shape[0]} targets, got {y.shape[0]}")
         if not (np.all(np.isfinite(X)) and np.all(np.isfinite(y))):
             raise ValueError("X, y: must be finite (no NaN or inf)")
+        return X, y
+
+    def fit(self, X: np.ndarray, y: np.ndarray) -> SparseOnlineGP:
+        """Reset, then absorb the rows of ``X`` (n, d) with targets ``y`` (n,) in order."""
+        X, y = self._checked(X, y)
         self._reset()
         Xs = X / self.length_scales
         for j in range(X.shape[0]):
@@ -477,15 +482,7 @@ class SparseOnlineGP:
         SparseOnlineGP
             self.
         """
-        X = np.asarray(X, dtype=float)
-        y = np.asarray(y, dtype=float).reshape(-1)
-        d = self.length_scales.size
-        if X.ndim != 2 or X.shape[1] != d:
-            raise ValueError(f"X: expected shape (n, {d}), got {X.shape}")
-        if y.shape[0] != X.shape[0]:
-            raise ValueError(f"y: expected {X.shape[0]} targets, got {y.shape[0]}")
-        if not (np.all(np.isfinite(X)) and np.all(np.isfinite(y))):
-            raise ValueError("X, y: must be finite (no NaN or inf)")
+        X, y = self._checked(X, y)
         b = self._b
         if b == 0 or X.shape[0] == 0:
             return self
@@ -493,7 +490,7 @@ class SparseOnlineGP:
         self._bv_norms = None
         Xs = X / self.length_scales
         Xb = self._Xs[:b]
-        Kbb = se_ard_kernel(Xb, Xb, length_scales=np.ones(d), signal_var=self.signal_var)
+        Kbb = se_ard_kernel(Xb, Xb, length_scales=np.ones(Xb.shape[1]), signal_var=self.signal_var)
         M = self.noise_var * Kbb
         rhs = np.zeros(b)
         for start in range(0, X.shape[0], 4096):
