@@ -144,11 +144,16 @@ def run_evaluation(
     ------
     ValueError
         Unreadable demonstrations or model file (naming the file and field), ``folds``
-        outside [2, number of runs].
+        outside [2, number of runs], ``workers`` or ``repeats`` below 1 (checked first,
+        before any demonstrations are recorded).
     """
     from study.demonstrations import load_demonstrations
     from tasks.contextual import TARGET_KIND
 
+    if workers < 1:
+        raise ValueError(f"--workers: must be at least 1, got {workers}")
+    if repeats < 1:
+        raise ValueError(f"--repeats: must be at least 1, got {repeats}")
     settings = EvaluationSettings(folds=folds, seed=seed)
     model_path = Path(DEFAULT_MODEL if model is None else model)
     recipe = load_model(model_path).metadata.get("settings", {})
@@ -167,10 +172,6 @@ def run_evaluation(
             load_model(model_path).metadata.get("data_sha256"), where=str(model_path)
         )
     demos = load_demonstrations(demonstrations)
-    if workers < 1:
-        raise ValueError(f"--workers: must be at least 1, got {workers}")
-    if repeats < 1:
-        raise ValueError(f"--repeats: must be at least 1, got {repeats}")
     with contextlib.ExitStack() as stack:
         map_fn = map
         if workers > 1:
@@ -185,7 +186,7 @@ def run_evaluation(
                 model=str(model_path),
                 where=str(demonstrations),
                 map_fn=map_fn,
-            )  # fmt: skip
+            )
             for i in range(repeats)
         ]
     result = results[0]
