@@ -713,7 +713,7 @@ def _fold_job(data: _Data, k: int, seed: np.random.SeedSequence) -> dict[str, An
     run, task, target, off, ids = data.run, data.task, data.target, data.off, data.ids
     # One generator each for the negatives, the user models and every classifier, so a
     # classifier's settings never change another's draws (e.g. the forests' seeds).
-    rng, user_rng, *method_rngs = np.random.default_rng(seed).spawn(2 + len(METHODS))
+    neg_rng, user_rng, *method_rngs = np.random.default_rng(seed).spawn(2 + len(METHODS))
     t0 = time.perf_counter()
     wp = way_points_of(run, settings.stride)
     test_ticks = way_points_of(run, settings.test_stride)
@@ -723,7 +723,7 @@ def _fold_job(data: _Data, k: int, seed: np.random.SeedSequence) -> dict[str, An
     ytr, gtr = data.y[train_rows], run[train_rows]
     Zc = scaler.transform(data.X_cand)
     neg_rows = (
-        hard_negatives(train_rows, off, ids, target, settings.negatives_per_tick, rng)
+        hard_negatives(train_rows, off, ids, target, settings.negatives_per_tick, neg_rng)
         if settings.negatives
         else np.zeros(0, dtype=int)
     )

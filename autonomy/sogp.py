@@ -413,13 +413,18 @@ class SparseOnlineGP:
         self._Xs[last] = 0.0
         self._b = last
 
-    def _recondition(self) -> None:
-        """Recompute Q as the inverse Gram matrix of the BVs (Cholesky with jitter)."""
+    def _gram(self) -> np.ndarray:
+        """The BVs' Gram matrix, (b, b)."""
+        Xb = self._Xs[: self._b]
+        return se_ard_kernel(Xb, Xb, length_scales=np.ones(Xb.shape[1]), signal_var=self.signal_var)
+
+    def _recondition(self, K: np.ndarray | None = None) -> None:
+        """Recompute Q as the inverse Gram matrix ``K`` of the BVs (computed here unless
+        given) by Cholesky with jitter."""
         b = self._b
         if b == 0:
             return
-        Xb = self._Xs[:b]
-        K = se_ard_kernel(Xb, Xb, length_scales=np.ones(Xb.shape[1]), signal_var=self.signal_var)
+        K = self._gram() if K is None else K
         factor = _cholesky_with_jitter(K, 1e-10 * self.signal_var)
         if factor is None:  # pragma: no cover - a Gram matrix with jitter 1e2 * signal_var
             return
@@ -489,8 +494,7 @@ class SparseOnlineGP:
         self._dense_C = None
         self._bv_norms = None
         Xs = X / self.length_scales
-        Xb = self._Xs[:b]
-        Kbb = se_ard_kernel(Xb, Xb, length_scales=np.ones(Xb.shape[1]), signal_var=self.signal_var)
+        Kbb = self._gram()
         M = self.noise_var * Kbb
         rhs = np.zeros(b)
         for start in range(0, X.shape[0], 4096):
@@ -501,7 +505,7 @@ class SparseOnlineGP:
         if factor is None:  # pragma: no cover - M is a Gram matrix plus a ridge
             return self
         self._alpha[:b] = cho_solve(factor, rhs, check_finite=False)
-        self._recondition()
+        self._recondition(Kbb)
         C = self.noise_var * cho_solve(factor, np.eye(b), check_finite=False) - _symmetric(
             self._Q, b
         )
