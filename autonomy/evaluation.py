@@ -101,11 +101,11 @@ Decisions where the thesis and the spec are silent:
   .80/.62/.90/.83; the noise variance x0.3 .80/.62/.89/.83. On the SOGP (capacity 1200
   refined: .81/.61/.90/.83): capacity 1700 with the online pass over half the points
   (40 % slower) .83/.61/.90/.83; abstaining when another candidate scores within .2 of
-  the winner .82/.62/.91/.84. Ranking the
-  candidates by the confidence (5.10) instead of the mean, with the thresholds on the
-  confidence (.5 to .95), gained .014 on object bypass in this measure, but in
-  ``asa evaluate --repeats 3`` its means fell (doorway .773, inspection .865, macro
-  .761 against .790, .880, .770; bypass .618 and wall .787 against .617 and .792).
+  the winner .82/.62/.91/.84. Ranking the candidates by the confidence (5.10) instead
+  of the mean, with the thresholds on the confidence (.5 to .95), gained .014 on object
+  bypass in this measure, but in ``asa evaluate --repeats 3`` its means fell (doorway
+  .773, inspection .865, macro .761 against .790, .880, .770; bypass .618 and wall .787
+  against .617 and .792).
 - Introspection probabilities: SOGP, the normalised confidences (5.10,
   ``SOGPClassifier.predict_proba``); SVM, Platt scaling (``CalibratedClassifierCV(...,
   method="sigmoid", ensemble=False)``, what ``SVC(probability=True)`` did) with the grid's
