@@ -673,6 +673,11 @@ def _decide(scores: np.ndarray, offsets: np.ndarray, ticks: np.ndarray):
 # --------------------------------------------------------------------------- evaluation
 
 
+def _candidate_rows(offsets: np.ndarray, ticks: np.ndarray) -> np.ndarray:
+    """The candidate rows of ``ticks``, tick by tick."""
+    return np.concatenate([np.arange(offsets[i], offsets[i + 1]) for i in ticks])
+
+
 def _sorted_candidates(demos: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Candidates of every tick sorted by distance (stable): points, ids, kinds, offsets."""
     off = np.asarray(demos.cand_offsets, dtype=np.int64)
@@ -743,7 +748,7 @@ def _fold_job(data: _Data, k: int, seed: np.random.SeedSequence) -> dict[str, An
     Zneg, gneg = Zc[neg_rows], run[tick_of_cand[neg_rows]]
     ticks = test_ticks[data.fold[test_ticks] == k]
     out: dict[str, Any] = {"truth": task[ticks].tolist(), "pred": {}, "ok": {}}
-    rows_needed = np.concatenate([np.arange(off[i], off[i + 1]) for i in ticks])
+    rows_needed = _candidate_rows(off, ticks)
     fitted: dict[str, _Fitted] = {}
     for method, method_rng in zip(METHODS, method_rngs, strict=True):
         f = fitted[method] = fit_method(
@@ -785,7 +790,7 @@ def _fold_job(data: _Data, k: int, seed: np.random.SeedSequence) -> dict[str, An
     for r in np.unique(run[data.fold == k]):
         ticks_r = np.flatnonzero(run == r)
         truth_r = [(task[i], target[i]) for i in ticks_r]
-        rows_r = np.concatenate([np.arange(off[i], off[i + 1]) for i in ticks_r])
+        rows_r = _candidate_rows(off, ticks_r)
         S = np.full((len(data.X_cand), len(sogp.classes)), np.nan)
         S[rows_r] = sogp.task_scores(Zc[rows_r])  # unclaimed entries NaN
         rows, cols = _decide(S, off, ticks_r)

@@ -397,8 +397,10 @@ class World:
         self._accel_map = np.zeros(2)
         self._read_state()
 
-    def _read_state(self) -> None:
-        states = p.getJointStates(self._robot, _JOINTS, **self._pb)
+    def _read_state(self, states: Any | None = None) -> None:
+        """Pose and velocity from pybullet's joint ``states`` of the robot (read if None)."""
+        if states is None:
+            states = p.getJointStates(self._robot, _JOINTS, **self._pb)
         self._q = (states[0][0], states[1][0], states[2][0])
         self._qd = (states[0][1], states[1][1], states[2][1])
 
@@ -498,9 +500,7 @@ class World:
                 physicsClientId=cid,
             )
             step_simulation(physicsClientId=cid)
-            states = joint_states(robot, joints, physicsClientId=cid)  # = _read_state()
-            self._q = (states[0][0], states[1][0], states[2][0])
-            self._qd = (states[0][1], states[1][1], states[2][1])
+            self._read_state(joint_states(robot, joints, physicsClientId=cid))
             points = contact_points(bodyA=robot, physicsClientId=cid)
             if points or self._open is not None:
                 self._track_contacts((first_substep + i + 1) * h, started, points)

@@ -48,7 +48,7 @@ import json
 import multiprocessing
 import os
 import shutil
-from dataclasses import fields, replace
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -60,7 +60,7 @@ from study.cli import limit_blas_threads
 
 RECIPE = {"task": "all", "runs": 12, "seed": 7}  # autonomy/models/README.md
 
-_RECIPE = {"stride": "stride"}  # the model's settings the evaluation takes over
+_FROM_MODEL = ("stride",)  # the model's settings the evaluation takes over
 
 
 def cache_root() -> Path:
@@ -156,12 +156,12 @@ def run_evaluation(
         raise ValueError(f"--repeats: must be at least 1, got {repeats}")
     settings = EvaluationSettings(folds=folds, seed=seed)
     model_path = Path(DEFAULT_MODEL if model is None else model)
-    recipe = load_model(model_path).metadata.get("settings", {})
-    known = {f.name for f in fields(EvaluationSettings)}
+    metadata = load_model(model_path).metadata
+    recipe = metadata.get("settings", {})
     overrides = {
-        ours: recipe[theirs]
-        for theirs, ours in _RECIPE.items()
-        if theirs in recipe and ours in known and isinstance(recipe[theirs], int | float)
+        name: recipe[name]
+        for name in _FROM_MODEL
+        if name in recipe and isinstance(recipe[name], int | float)
     }
     try:
         settings = replace(settings, **overrides)
@@ -169,7 +169,7 @@ def run_evaluation(
         raise ValueError(f"{model_path}: field 'metadata.settings': {error}") from None
     if demonstrations is None:
         demonstrations, _ = cached_demonstrations(
-            load_model(model_path).metadata.get("data_sha256"), where=str(model_path)
+            metadata.get("data_sha256"), where=str(model_path)
         )
     demos = load_demonstrations(demonstrations)
     with contextlib.ExitStack() as stack:

@@ -554,9 +554,10 @@ class SyntheticParticipant:
             return ("object_inspection", self._inspect_id)
         # distances as plain floats (numpy on 2-vectors costs more than the numbers)
         ex, ey = float(leg.points[-1][0]) - px, float(leg.points[-1][1]) - py
-        if leg.face is not None and math.sqrt(ex * ex + ey * ey) < 1.5:
+        to_end = math.sqrt(ex * ex + ey * ey)
+        if leg.face is not None and to_end < 1.5:
             return ("object_inspection", self._inspect_id)
-        if leg.final_yaw is not None and self._dock_id and math.sqrt(ex * ex + ey * ey) < 1.5:
+        if leg.final_yaw is not None and self._dock_id and to_end < 1.5:
             return ("robot_docking", self._dock_id)
         for kind, cid, cx, cy in self._passages:
             dx, dy = cx - px, cy - py
