@@ -105,7 +105,12 @@ Decisions where the thesis and the spec are silent:
   of the mean, with the thresholds on the confidence (.5 to .95), gained .014 on object
   bypass in this measure, but in ``asa evaluate --repeats 3`` its means fell (doorway
   .773, inspection .865, macro .761 against .790, .880, .770; bypass .618 and wall .787
-  against .617 and .792).
+  against .617 and .792). A fifth one-vs-all GP for the hard negatives ("none": +1 on
+  them, -1 on the task points), the candidates ranked by a class's mean minus the none
+  GP's (the full GP, seed 0): with every threshold at 0, .734/.643/.871/.840 against the
+  plain means' .749/.627/.872/.827; with the thresholds per type picked on the test
+  folds, .822/.630/.904/.837 against .818/.630/.897/.829 -- no gain on object bypass
+  once the other types' thresholds rise, for a fifth GP to train.
 - Introspection probabilities: SOGP, the normalised confidences (5.10,
   ``SOGPClassifier.predict_proba``); SVM, Platt scaling (``CalibratedClassifierCV(...,
   method="sigmoid", ensemble=False)``, what ``SVC(probability=True)`` did) with the grid's
@@ -130,7 +135,8 @@ Decisions where the thesis and the spec are silent:
 - Speed: a fold job costs about 150 s of CPU (the SOGP most of it, half of that its
   inner cross-validation), an introspection pair about 8 s: some 14 CPU-minutes, run by
   ``asa evaluate`` in as many worker processes as CPUs. Measured on this 2-core machine
-  with 2 workers, quiet: 7 min 57 s wall (13 min 19 s user CPU).
+  with 2 workers, quiet: 7 min 57 s wall (13 min 19 s user CPU); again at 2c7a009, the
+  same results, 5 min 22 s wall (9 min 6 s user CPU).
 - Result (``asa evaluate``, seed 0, 48 runs): F0.5 doorway / bypass / inspection / wall
   / macro: SOGP .785/.640/.891/.815/.783, SVM .768/.649/.830/.810/.764, KNN
   .720/.587/.841/.774/.731, RF .738/.617/.858/.828/.760. The SOGP leads the macro,
