@@ -132,8 +132,8 @@ Decisions where the thesis and the spec are silent:
   their own (spawned from the job's), so one classifier's settings never change
   another's draws (they did: a change to the SOGP moved the forests' seeds, and their
   F0.5 by up to .015).
-- Speed: a fold job costs about 150 s of CPU (the SOGP most of it, half of that its
-  inner cross-validation), an introspection pair about 8 s: some 14 CPU-minutes, run by
+- Speed: a fold job costs 100-150 s of CPU (the SOGP most of it, half of that its
+  inner cross-validation), an introspection pair about 8 s: some 9-14 CPU-minutes, run by
   ``asa evaluate`` in as many worker processes as CPUs. Measured on this 2-core machine
   with 2 workers, quiet: 7 min 57 s wall (13 min 19 s user CPU); again at 2c7a009, the
   same results, 5 min 22 s wall (9 min 6 s user CPU).
