@@ -684,6 +684,17 @@ def _candidate_rows(offsets: np.ndarray, ticks: np.ndarray) -> np.ndarray:
     return np.concatenate([np.arange(offsets[i], offsets[i + 1]) for i in ticks])
 
 
+def _recognise(
+    fitted: _Fitted, Z_cand: np.ndarray, offsets: np.ndarray, ticks: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_decide` over ``fitted``'s task scores of the candidates of ``ticks`` (rows
+    of ``Z_cand``, standardised; entries no task claims are NaN and never win)."""
+    rows = _candidate_rows(offsets, ticks)
+    S = np.full((len(Z_cand), len(fitted.task_classes)), np.nan)
+    S[rows] = fitted.task_scores(Z_cand[rows])
+    return _decide(S, offsets, ticks)
+
+
 def _sorted_candidates(demos: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Candidates of every tick sorted by distance (stable): points, ids, kinds, offsets."""
     off = np.asarray(demos.cand_offsets, dtype=np.int64)
@@ -754,7 +765,6 @@ def _fold_job(data: _Data, k: int, seed: np.random.SeedSequence) -> dict[str, An
     Zneg, gneg = Zc[neg_rows], run[tick_of_cand[neg_rows]]
     ticks = test_ticks[data.fold[test_ticks] == k]
     out: dict[str, Any] = {"truth": task[ticks].tolist(), "pred": {}, "ok": {}}
-    rows_needed = _candidate_rows(off, ticks)
     fitted: dict[str, _Fitted] = {}
     for method, method_rng in zip(METHODS, method_rngs, strict=True):
         f = fitted[method] = fit_method(
@@ -767,9 +777,7 @@ def _fold_job(data: _Data, k: int, seed: np.random.SeedSequence) -> dict[str, An
             negatives=Zneg,
             negative_groups=gneg,
         )
-        S = np.full((len(data.X_cand), len(f.task_classes)), np.nan)
-        S[rows_needed] = f.task_scores(Zc[rows_needed])
-        rows, cols = _decide(S, off, ticks)
+        rows, cols = _recognise(f, Zc, off, ticks)
         pred, ok = [], []
         for i, r, c in zip(ticks, rows, cols, strict=True):
             pred.append(None if r < 0 else labels[int(f.task_classes[c])])
@@ -796,10 +804,7 @@ def _fold_job(data: _Data, k: int, seed: np.random.SeedSequence) -> dict[str, An
     for r in np.unique(run[data.fold == k]):
         ticks_r = np.flatnonzero(run == r)
         truth_r = [(task[i], target[i]) for i in ticks_r]
-        rows_r = _candidate_rows(off, ticks_r)
-        S = np.full((len(data.X_cand), len(sogp.classes)), np.nan)
-        S[rows_r] = sogp.task_scores(Zc[rows_r])  # unclaimed entries NaN
-        rows, cols = _decide(S, off, ticks_r)
+        rows, cols = _recognise(sogp, Zc, off, ticks_r)
         dec_sogp: list[tuple[str, str] | None] = [
             (labels[int(sogp.classes[c])], ids[rr]) if rr >= 0 else None
             for rr, c in zip(rows, cols, strict=True)

@@ -106,6 +106,7 @@ from scipy.optimize import minimize
 
 _TINY = 1e-300
 _MIN_ALLOC = 16
+_REFINE_BLOCK = 4096  # observations per kernel block in SparseOnlineGP.refine
 MAX_LENGTH_SCALE = 0.5  # upper bound of a length scale, in standard deviations of its column
 NOVELTY_TOL = 1e-4  # relative to the signal variance; below it a point is projected
 
@@ -497,10 +498,11 @@ class SparseOnlineGP:
         Kbb = self._gram()
         M = self.noise_var * Kbb
         rhs = np.zeros(b)
-        for start in range(0, X.shape[0], 4096):
-            Knb = self._cross_kernel(Xs[start : start + 4096])
+        for start in range(0, X.shape[0], _REFINE_BLOCK):
+            block = slice(start, start + _REFINE_BLOCK)
+            Knb = self._cross_kernel(Xs[block])
             M += Knb.T @ Knb
-            rhs += Knb.T @ y[start : start + 4096]
+            rhs += Knb.T @ y[block]
         factor = _cholesky_with_jitter(M, 1e-12 * float(np.trace(M)) / b)
         if factor is None:  # pragma: no cover - M is a Gram matrix plus a ridge
             return self
