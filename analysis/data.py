@@ -193,7 +193,7 @@ def _read_db(db: Path | str) -> dict[str, pd.DataFrame]:
     from sqlalchemy import text
     from sqlalchemy.exc import DatabaseError
 
-    from study.storage import open_database
+    from study.data.storage import open_database
 
     try:
         engine = open_database(db, create=False)

@@ -6,7 +6,7 @@ Sec. 7.5 (Fig. 7.44, Table 7.10): clearance to obstacles. The assistance and rec
 metrics describe the modes themselves (spec section 7, issue 7).
 
 Each :class:`Metric` names a column of :attr:`analysis.data.Frames.trials`; its names match
-``study.protocol.METRICS`` where the protocol knows the metric (``score_s``, ``tlx_raw``...),
+``study.engine.protocol.METRICS`` where the protocol knows the metric (``score_s``, ``tlx_raw``...),
 so the protocol's ``[analysis] metrics`` pick from this table.
 
 Decisions where the spec is silent

@@ -2,7 +2,7 @@
 Sec. 7.2.2, 7.3, 7.4; spec sections 3 and 5; issue 3, "Offline evaluation").
 
 :func:`evaluate` takes demonstrations (duck-typed: the fields of
-``study.demonstrations.Demonstrations``) and reports
+``study.jobs.demonstrations.Demonstrations``) and reports
 
 - **task classification** (Sec. 7.3.1, Tables 7.2-7.6): cross-validation *by run* (a run's
   ticks are never split between training and test) of the SOGP classifier (Ch. 5) against

@@ -21,9 +21,9 @@ except PackageNotFoundError:  # running from a source tree that is not installed
 
 
 _LAZY = {
-    "run_session": "study.session",
-    "run_synthetic_study": "study.synth",
-    "load_protocol": "study.protocol",
+    "run_session": "study.engine.session",
+    "run_synthetic_study": "study.jobs.synth",
+    "load_protocol": "study.engine.protocol",
 }
 
 

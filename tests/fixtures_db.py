@@ -30,7 +30,7 @@ import numpy as np
 from sqlalchemy.orm import Session
 
 from questionnaires import nasa_tlx
-from study.storage import (
+from study.data.storage import (
     Event,
     Participant,
     Question,

@@ -18,7 +18,7 @@ import pytest
 
 from analysis.data import BASELINE, load_study, read_config, tidy
 from analysis.metrics import BY_NAME, METRICS, long_frame, ordered_metrics
-from study.dbtools import export
+from study.data.dbtools import export
 
 sys.path.insert(0, str(Path(__file__).parent))
 from fixtures_db import MODES, FixtureSettings, make_study_db  # noqa: E402

@@ -10,8 +10,8 @@ import study
 
 def test_the_documented_functions_are_reachable_from_the_packages():
     from analysis.report import build_report
-    from study.session import run_session
-    from study.synth import run_synthetic_study
+    from study.engine.session import run_session
+    from study.jobs.synth import run_synthetic_study
 
     assert study.run_session is run_session
     assert study.run_synthetic_study is run_synthetic_study

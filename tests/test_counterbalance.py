@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from study.counterbalance import (
+from study.engine.counterbalance import (
     SCHEMES,
     assign,
     assign_indexed,

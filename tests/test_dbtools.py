@@ -11,10 +11,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from study.dbtools import check, export
+from study.data.dbtools import check, export
 from study.participants import ScriptedParticipant
-from study.protocol import load_protocol
-from study.session import run_session
+from study.engine.protocol import load_protocol
+from study.engine.session import run_session
 
 PROTOCOL = """
 [study]

@@ -16,7 +16,7 @@ import pytest
 
 from autonomy.features import task_features
 from study.cli import main
-from study.demonstrations import (
+from study.jobs.demonstrations import (
     MANIFEST,
     load_demonstrations,
     plan_recording,

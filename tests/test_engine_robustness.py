@@ -15,9 +15,9 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from study.participants import ScriptedParticipant
-from study.protocol import parse_protocol
-from study.session import run_session
-from study.storage import (
+from study.engine.protocol import parse_protocol
+from study.engine.session import run_session
+from study.data.storage import (
     Event,
     Participant,
     Sample,
@@ -26,7 +26,7 @@ from study.storage import (
     Trial,
     open_database,
 )
-from study.trial import TrialSpec, TrialWriter, recording_relpath
+from study.engine.trial import TrialSpec, TrialWriter, recording_relpath
 from tasks.primary import PrimarySettings
 
 PROTOCOL = """

@@ -20,7 +20,7 @@ from sim.occupancy import build_grid, shortest_path
 from sim.scenario import SCENARIO_DIR, load_scenario
 from sim.semantics import derive_components
 from study.cli import main
-from study.protocol import (
+from study.engine.protocol import (
     GATES,
     PHASE_KINDS,
     POSTHOC,

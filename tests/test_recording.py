@@ -20,7 +20,7 @@ from sim.scenario import available_scenarios, load_scenario
 from sim.semantics import derive_components
 from sim.types import Pose2D
 from study.cli import main
-from study.recording import (
+from study.data.recording import (
     ANALYTICS_OFF_ENV,
     ENTITY,
     TIMELINE,
@@ -33,7 +33,7 @@ from study.recording import (
     verify,
     verify_many,
 )
-from study.storage import Participant, SessionRow, Study, Trial, open_database
+from study.data.storage import Participant, SessionRow, Study, Trial, open_database
 
 DT = 0.05  # [s] control tick
 
@@ -307,7 +307,7 @@ def test_analytics_stay_off_in_the_environment_the_module_sets(tmp_path):
         from sim.scenario import available_scenarios, load_scenario
         from sim.semantics import derive_components
         from sim.types import Pose2D
-        from study.recording import TrialRecorder, verify
+        from study.data.recording import TrialRecorder, verify
         s = load_scenario("demo_docking")
         path = {str(home / "t.rrd")!r}
         with TrialRecorder(path, trial_key="k", scenario=s, components=derive_components(s),

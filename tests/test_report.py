@@ -22,7 +22,7 @@ from analysis.report import build_report
 from analysis.stats import analyse
 from analysis.tables import apa_anova
 from study.cli import main
-from study.dbtools import export
+from study.data.dbtools import export
 
 sys.path.insert(0, str(Path(__file__).parent))
 from fixtures_db import FixtureSettings, make_study_db  # noqa: E402

@@ -17,11 +17,11 @@ import pytest
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from study.dbtools import check
+from study.data.dbtools import check
 from study.participants import ScriptedParticipant
-from study.protocol import load_protocol
-from study.session import run_session
-from study.storage import SessionRow, Trial, open_database
+from study.engine.protocol import load_protocol
+from study.engine.session import run_session
+from study.data.storage import SessionRow, Trial, open_database
 
 PROTOCOL = """
 [study]

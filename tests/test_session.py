@@ -17,11 +17,11 @@ from sqlalchemy.orm import Session
 
 from autonomy.modes import available_modes
 from questionnaires import nasa_tlx
-from study.dbtools import check, export
+from study.data.dbtools import check, export
 from study.participants import ScriptedParticipant
-from study.protocol import load_protocol
-from study.session import run_session
-from study.storage import (
+from study.engine.protocol import load_protocol
+from study.engine.session import run_session
+from study.data.storage import (
     Event,
     Participant,
     Question,
@@ -32,7 +32,7 @@ from study.storage import (
     Trial,
     open_database,
 )
-from study.trial import ExperimenterControl
+from study.engine.trial import ExperimenterControl
 from study.types import ScreenState
 
 FAST = """

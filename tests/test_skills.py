@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 
 from sim.scenario import load_scenario
 from sim.world import World
-from study.demonstrations import FreeSpace, record_run, run_seed
+from study.jobs.demonstrations import FreeSpace, record_run, run_seed
 from tasks.contextual import (
     DEFAULT_SCENES,
     DEMONSTRATED,

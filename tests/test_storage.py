@@ -8,7 +8,7 @@ import pytest
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
-from study.storage import (
+from study.data.storage import (
     SCHEMA_VERSION,
     Meta,
     Participant,

@@ -12,9 +12,9 @@ import pytest
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from study.dbtools import check
-from study.storage import Base, Event, Participant, Sample, Study, Trial, open_database
-from study.synth import (
+from study.data.dbtools import check
+from study.data.storage import Base, Event, Participant, Sample, Study, Trial, open_database
+from study.jobs.synth import (
     format_summary,
     participant_codes,
     run_synthetic_study,

@@ -29,8 +29,8 @@ from study.participants import (
     tlx_ratings,
 )
 from study.participants.synthetic import DISTRACTIONS, TLX_ORDER
-from study.standalone import standalone_trial
-from study.storage import Sample
+from study.engine.standalone import standalone_trial
+from study.data.storage import Sample
 from study.types import ScreenState, TrialInfo
 from tasks.contextual import TASK_TYPES
 

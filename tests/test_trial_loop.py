@@ -18,8 +18,8 @@ from sim.scenario import load_scenario
 from sim.semantics import derive_components
 from sim.world import World
 from study.participants import ScriptedParticipant
-from study.storage import Event, Participant, Sample, SessionRow, Study, Trial, open_database
-from study.trial import (
+from study.data.storage import Event, Participant, Sample, SessionRow, Study, Trial, open_database
+from study.engine.trial import (
     FLUSH_EVERY_TICKS,
     ExperimenterControl,
     Scene,

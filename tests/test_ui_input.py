@@ -10,7 +10,7 @@ import pygame
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from study.protocol import load_protocol
+from study.engine.protocol import load_protocol
 from study.ui.input import GamepadMapping, InputState
 
 os.environ.setdefault("SDL_VIDEODRIVER", "dummy")

@@ -17,8 +17,8 @@ from sim.scenario import load_scenario
 from sim.world import World
 from study.bench.ui import headless_trial
 from study.participants.human import HumanParticipant
-from study.protocol import load_protocol
-from study.storage import Event, Sample
+from study.engine.protocol import load_protocol
+from study.data.storage import Event, Sample
 from study.types import ParticipantInput, ScreenState, TrialInfo
 from study.ui.camera import CameraFeed
 from study.ui.inject import VIRTUAL_ID, EventDriver, post_device, post_key
@@ -258,7 +258,7 @@ def test_no_mode_name_is_ever_drawn(tmp_path, person_factory, protocol):
 
 
 def test_recording_logs_the_camera_image_the_screen_showed(tmp_path, person_factory, rng):
-    from study.recording import recording_summary
+    from study.data.recording import recording_summary
 
     shown: list[np.ndarray] = []
 

@@ -8,7 +8,7 @@ Figures:
   rerun recording, in this one process (budget: above 50). ``synthetic_trial_cpu_factor``
   is the same per CPU second of this process (less disturbed by other processes on a busy
   machine), ``synthetic_trial_simulated_s`` the trial's simulated length;
-- ``synthetic_study_s``: wall seconds of :func:`study.synth.run_synthetic_study` of the
+- ``synthetic_study_s``: wall seconds of :func:`study.jobs.synth.run_synthetic_study` of the
   thesis protocol with 2 workers, recordings included, for
   ``synthetic_study_participants`` participants: 18, or 2 with ``--quick``
   (budget for 18, with the report: under 5 minutes on 2 cores).
@@ -26,9 +26,9 @@ from pathlib import Path
 import numpy as np
 
 from study.participants.synthetic import Population, SyntheticParticipant
-from study.protocol import load_protocol
-from study.standalone import standalone_trial
-from study.synth import run_synthetic_study
+from study.engine.protocol import load_protocol
+from study.engine.standalone import standalone_trial
+from study.jobs.synth import run_synthetic_study
 
 _SEED = 7061
 

@@ -3,7 +3,7 @@
 DESIGN.md ("One control tick", "Performance budgets"): a full 18-participant synthetic
 study of the thesis protocol must run in under 5 minutes on 2 cores, about 30 core-seconds
 per participant for 15-18k ticks, so a whole tick must average about 2 ms. This group
-measures that tick as the session engine runs it: :func:`study.trial.run_trial` on the
+measures that tick as the session engine runs it: :func:`study.engine.trial.run_trial` on the
 cluttered room's main trial (route A -> B -> A with the inspection, secondary questions in
 the region) with the scripted participant
 (:class:`study.participants.ScriptedParticipant`), SQLite logging and the rerun recording,
@@ -36,8 +36,8 @@ from typing import Any
 import numpy as np
 
 from study.participants import ScriptedParticipant
-from study.standalone import standalone_trial
-from study.trial import TrialWriter
+from study.engine.standalone import standalone_trial
+from study.engine.trial import TrialWriter
 from tasks.secondary import SecondarySettings
 
 MODES = ("manual", "reactive_bn", "contextual_task")

@@ -42,8 +42,8 @@ def headless_trial(
 ) -> tuple[Any, Engine]:
     """One driving trial of ``seconds`` simulated seconds (A -> B -> A, no inspection) in a
     fresh database in ``folder``, camera frames in its recording at ``camera_hz``; returns
-    ``(TrialResult, engine)`` (:func:`study.standalone.standalone_trial`)."""
-    from study.standalone import standalone_trial
+    ``(TrialResult, engine)`` (:func:`study.engine.standalone.standalone_trial`)."""
+    from study.engine.standalone import standalone_trial
     from tasks.secondary import SecondarySettings
 
     return standalone_trial(
@@ -71,8 +71,8 @@ def run(quick: bool = False) -> dict:
 
     from study.participants.human import HumanParticipant
     from study.participants.scripted import ScriptedParticipant
-    from study.protocol import load_protocol
-    from study.storage import Trial
+    from study.engine.protocol import load_protocol
+    from study.data.storage import Trial
     from study.ui.inject import EventDriver
     from study.ui.input import GamepadMapping
 

@@ -1,5 +1,5 @@
 """``asa db check``: integrity and consistency of a study database
-(:func:`study.dbtools.check`)."""
+(:func:`study.data.dbtools.check`)."""
 
 from __future__ import annotations
 
@@ -33,7 +33,7 @@ def check_command(path: Path, as_json: bool, no_verify: bool) -> None:
 
     Exit status 0 when clean, 1 with a report of the problems, 2 on bad input.
     """
-    from study.dbtools import check
+    from study.data.dbtools import check
 
     report = check(path, verify_recordings=not no_verify)
     if as_json:

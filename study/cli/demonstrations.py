@@ -1,7 +1,7 @@
 """``asa demonstrations``: record scripted demonstrations of the contextual tasks and
 summarise a directory of them.
 
-Thin click commands over :mod:`study.demonstrations` (``plan_recording``,
+Thin click commands over :mod:`study.jobs.demonstrations` (``plan_recording``,
 ``record_demonstrations``, ``summarise``). Bad input (an unknown task or scene, a scene
 without a component of the task's kind, a corrupted directory) is a ``ValueError``
 naming the option or file, which the ``asa`` shell prints as one line, exit status 2.
@@ -53,9 +53,9 @@ def record(task: str, scene: str | None, runs: int, out: str, seed: int) -> None
 
     Each run starts at a random free pose a few metres from a random target of the
     task's kind, with a random direction or side, and stores every tick's poses,
-    stick command, target point and task feature (see study.demonstrations).
+    stick command, target point and task feature (see study.jobs.demonstrations).
     """
-    from study.demonstrations import plan_recording, record_demonstrations, resolve_plan
+    from study.jobs.demonstrations import plan_recording, record_demonstrations, resolve_plan
 
     if runs < 1:
         raise ValueError(f"--runs: must be at least 1, got {runs}")
@@ -78,7 +78,7 @@ def record(task: str, scene: str | None, runs: int, out: str, seed: int) -> None
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
 def show(directory: str, as_json: bool) -> None:
     """Counts per task type: runs, ticks, completion rate, collisions."""
-    from study.demonstrations import summarise
+    from study.jobs.demonstrations import summarise
 
     summary = summarise(directory)
     if as_json:

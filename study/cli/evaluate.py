@@ -2,7 +2,7 @@
 demonstrations (thesis Sec. 7.2.2, 7.3, 7.4; issue 3, "Offline evaluation").
 
 A thin shell over :func:`autonomy.evaluation.evaluate`: load the demonstrations
-(:func:`study.demonstrations.load_demonstrations`, moving ticks), read the model file
+(:func:`study.jobs.demonstrations.load_demonstrations`, moving ticks), read the model file
 named by ``--model`` (default: the shipped model) for its training recipe, evaluate, and
 print tables (or ``--json``; ``--out FILE`` also writes the JSON).
 
@@ -97,7 +97,7 @@ def cached_demonstrations(
         not hash to ``data_sha256``.
     """
     from autonomy.training import data_sha256 as hash_of
-    from study.demonstrations import load_demonstrations, plan_recording, record_demonstrations
+    from study.jobs.demonstrations import load_demonstrations, plan_recording, record_demonstrations
 
     if not (isinstance(data_sha256, str) and len(data_sha256) >= 16):
         raise ValueError(f"{where}: field 'metadata.data_sha256': missing, cannot find its data")
@@ -147,7 +147,7 @@ def run_evaluation(
         outside [2, number of runs], ``workers`` or ``repeats`` below 1 (checked first,
         before any demonstrations are recorded).
     """
-    from study.demonstrations import load_demonstrations
+    from study.jobs.demonstrations import load_demonstrations
     from tasks.contextual import TARGET_KIND
 
     if workers < 1:

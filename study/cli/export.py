@@ -1,4 +1,4 @@
-"""``asa export``: one CSV per table of a study database (:func:`study.dbtools.export`)."""
+"""``asa export``: one CSV per table of a study database (:func:`study.data.dbtools.export`)."""
 
 from __future__ import annotations
 
@@ -24,7 +24,7 @@ import click
 def export_command(path: Path, out: Path) -> None:
     """Write one CSV per table (study, participant, session, trial, sample, event,
     question, response, meta) into --out; JSON columns as JSON text."""
-    from study.dbtools import export
+    from study.data.dbtools import export
 
     written = export(path, out)
     for name, n in written.items():

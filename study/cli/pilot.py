@@ -1,10 +1,10 @@
 """``asa pilot``: the README's main job (issue 6).
 
 The thesis protocol (``thesis-7-6``) with 18 synthetic participants
-(:func:`study.synth.run_synthetic_study`) into a fresh folder, recordings included; then
-the database check (:func:`study.dbtools.check`), the report
+(:func:`study.jobs.synth.run_synthetic_study`) into a fresh folder, recordings included; then
+the database check (:func:`study.data.dbtools.check`), the report
 (:func:`analysis.report.build_report`), where everything is, and the sanity summary
-(:func:`study.synth.sanity_summary`: per mode the completion rate, collisions, score, and
+(:func:`study.jobs.synth.sanity_summary`: per mode the completion rate, collisions, score, and
 for the contextual mode how often the recognised task and target match the participant's
 true intention).
 
@@ -63,9 +63,9 @@ def pilot(
       asa pilot --participants 6 --out quick/    # a smaller one
     """
     from analysis.report import build_report
-    from study.dbtools import check
-    from study.protocol import load_protocol
-    from study.synth import format_summary, run_synthetic_study, sanity_summary
+    from study.data.dbtools import check
+    from study.engine.protocol import load_protocol
+    from study.jobs.synth import format_summary, run_synthetic_study, sanity_summary
 
     start = time.perf_counter()
     p = load_protocol(protocol)

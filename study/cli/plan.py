@@ -1,8 +1,8 @@
 """``asa plan``: the order of the modes assigned to each participant, and a balance check.
 
 A thin shell over :func:`plan` (plain Python), which loads the protocol
-(:func:`study.protocol.load_protocol`), assigns orders with the protocol's counterbalancing
-scheme (:mod:`study.counterbalance`) and checks their balance. Participants get
+(:func:`study.engine.protocol.load_protocol`), assigns orders with the protocol's counterbalancing
+scheme (:mod:`study.engine.counterbalance`) and checks their balance. Participants get
 pseudonymous codes ``P01``, ``P02``, ... (three digits from 100 participants on), in the
 order they will be run; the session engine stores the same ``order_index`` and modes.
 
@@ -20,8 +20,8 @@ from typing import Any
 import click
 import numpy as np
 
-from study.counterbalance import assign_indexed, balance
-from study.protocol import load_protocol
+from study.engine.counterbalance import assign_indexed, balance
+from study.engine.protocol import load_protocol
 
 
 def participant_code(i: int, n: int) -> str:
@@ -48,7 +48,7 @@ def plan(
     dict
         ``protocol`` (name), ``source``, ``sha256``, ``scheme``, ``seed``, ``participants``
         (list of ``{code, order_index, modes}``), ``balance`` (see
-        :func:`study.counterbalance.balance`), ``balanced`` and ``warnings``.
+        :func:`study.engine.counterbalance.balance`), ``balanced`` and ``warnings``.
     """
     p = load_protocol(protocol)
     n = p.study.participants if participants is None else participants

@@ -1,7 +1,7 @@
 """``asa replay``: open a trial's rerun recording, or print what it holds.
 
-A thin shell over :func:`find_recording`, :func:`study.recording.recording_summary`
-and :func:`study.recording.open_viewer`.
+A thin shell over :func:`find_recording`, :func:`study.data.recording.recording_summary`
+and :func:`study.data.recording.open_viewer`.
 
 Decision where the spec is silent: ``--trial N`` is the trial's row id in the
 database (``trial.id``, the id ``asa export`` writes), because it is unique even
@@ -20,7 +20,7 @@ import click
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from study.storage import Participant, Trial, database_url, open_database
+from study.data.storage import Participant, Trial, database_url, open_database
 
 
 def find_recording(db: str | Path, participant: str, trial: int) -> Path:
@@ -108,7 +108,7 @@ def replay(db: Path, participant: str, trial: int, print_only: bool) -> None:
     Example: asa replay --db study.db --participant P01 --trial 7 --print
     """
     # imported here so that `asa replay --help` does not load rerun
-    from study.recording import format_summary, open_viewer, recording_summary
+    from study.data.recording import format_summary, open_viewer, recording_summary
 
     path = find_recording(db, participant, trial)
     if print_only:

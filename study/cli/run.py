@@ -1,7 +1,7 @@
 """``asa run``: one participant's session of a protocol, by a person at the pygame screen,
 or by a scripted or synthetic participant, with or without the screen.
 
-A thin shell over :func:`study.session.run_session`; prints one experimenter line per
+A thin shell over :func:`study.engine.session.run_session`; prints one experimenter line per
 phase and trial (participant, phase, mode, simulated time, collisions) to stdout, and while
 a trial runs on the screen a status line every few seconds (participant, phase, mode,
 trial time, collisions, frame rates). The participant's window never shows the mode.
@@ -62,7 +62,7 @@ class _Terminal:
             return
         from sqlalchemy.orm import Session
 
-        from study.storage import Trial
+        from study.data.storage import Trial
 
         with Session(writer.engine) as s:
             row = s.get(Trial, writer.trial_id)
@@ -138,8 +138,8 @@ def run(
           --headless --snapshots shots/
       asa run --protocol pilot --participant P01 --db pilot.db --resume   # after a crash
     """
-    from study.protocol import load_protocol
-    from study.session import check_code, default_seed, run_session
+    from study.engine.protocol import load_protocol
+    from study.engine.session import check_code, default_seed, run_session
 
     if input_kind == "human" and headless:
         raise ValueError("--headless: a person needs the window; drop --headless")
@@ -172,7 +172,7 @@ def run(
             os.environ["SDL_VIDEODRIVER"] = "dummy"
             os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
         from study.participants.human import HumanParticipant
-        from study.trial import FreeClock
+        from study.engine.trial import FreeClock
         from study.ui.inject import EventDriver
         from study.ui.input import GamepadMapping
 

@@ -269,7 +269,7 @@ def show_command(name_or_file: str, as_json: bool, png: Path | None, gui: bool) 
     components = derive_components(s)
     summary = describe(s, components)
     if png is not None:
-        from study.scene_plot import save_scene_png
+        from study.jobs.scene_plot import save_scene_png
 
         save_scene_png(s, components, png)
     if as_json:

@@ -1,4 +1,4 @@
-"""``asa synth``: a whole study with synthetic participants (:func:`study.synth.
+"""``asa synth``: a whole study with synthetic participants (:func:`study.jobs.synth.
 run_synthetic_study`), in worker processes; the database is the same whatever the number
 of workers. One line per finished participant (with the live count) goes to stderr, the
 summary to stdout. Started again after an interruption, it skips the participants already
@@ -53,8 +53,8 @@ def synth(
     Example:
       asa synth --protocol pilot --participants 6 --seed 1 --workers 2 --db pilot.db
     """
-    from study.protocol import load_protocol
-    from study.synth import format_summary, run_synthetic_study, sanity_summary
+    from study.engine.protocol import load_protocol
+    from study.jobs.synth import format_summary, run_synthetic_study, sanity_summary
 
     p = load_protocol(protocol)
     n = participants if participants is not None else p.study.participants

@@ -2,7 +2,7 @@
 Sec. 6.2, 7.4.1; issue 3, "Demonstrations and training").
 
 A thin shell over :func:`train_model`: load the demonstrations
-(:func:`study.demonstrations.load_demonstrations`, moving ticks only), train
+(:func:`study.jobs.demonstrations.load_demonstrations`, moving ticks only), train
 (:func:`autonomy.training.train`: DP-GMM clustering, tiny clusters merged, the SOGP
 classifier), save the model file (:func:`autonomy.model.save_model`) and print the cluster
 summary. The true task types of the demonstrations appear only in that summary.
@@ -36,7 +36,7 @@ def train_model(
     ValueError
         For unreadable demonstrations (naming the file and field) or too few points.
     """
-    from study.demonstrations import load_demonstrations
+    from study.jobs.demonstrations import load_demonstrations
 
     demos = load_demonstrations(demonstrations)
     if len(demos) == 0:

@@ -9,7 +9,7 @@ the participant row. A participant may also expose ``intention() -> (task, targe
 (ground truth stored in every sample) and ``end_trial(outcome)`` (called with the trial's
 stored outcome dict once it is committed, before any questionnaire); both are optional and
 looked up with ``getattr``. So is ``learns`` (default True; False skips the training
-phase, see :mod:`study.session`), and ``attach(world, event)``, called before ``begin_trial``
+phase, see :mod:`study.engine.session`), and ``attach(world, event)``, called before ``begin_trial``
 with the trial's ``sim.world.World`` (to be read, never stepped: the human screen renders
 the camera from it) and ``event(t, kind, **detail)`` to store an event row of the trial
 (:mod:`study.participants.human` stores a lost and a returned input device with it).

@@ -47,7 +47,7 @@ import pygame
 from questionnaires import nasa_tlx
 from sim.occupancy import OccupancyGrid, build_grid
 from sim.types import Observation
-from study.protocol import InputSettings, UiSettings
+from study.engine.protocol import InputSettings, UiSettings
 from study.types import ParticipantInput, ScreenState, TrialInfo
 from study.ui.camera import CameraFeed
 from study.ui.clock import UiClock
@@ -170,7 +170,7 @@ class HumanParticipant:
     # -------------------------------------------------------------- plumbing
 
     def clock(self) -> UiClock:
-        """The wall clock for :func:`study.session.run_session` that draws between ticks."""
+        """The wall clock for :func:`study.engine.session.run_session` that draws between ticks."""
         return UiClock(self._frame, fps=self.fps)
 
     def snapshot(self, tag: str) -> Path | None:

@@ -64,7 +64,7 @@ Driving (decisions where the spec is silent)
 
 Training: the model does not learn (its skill is fixed by the sampled parameters), so
 ``learns = False`` and the session engine skips the protocol's training phase, recording
-why (:mod:`study.session`); everything from practice on is run as for a person.
+why (:mod:`study.engine.session`); everything from practice on is run as for a person.
 
 Questionnaires: :func:`tlx_ratings` turns what the trial was like (:class:`TrialLoad`,
 from the stored outcome and what the participant noticed while driving) into ratings;

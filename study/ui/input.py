@@ -7,7 +7,7 @@ and events injected by :mod:`study.ui.inject` go through exactly the same code.
 
 Decisions where the spec is silent:
 
-- Mapping. The protocol's ``[input]`` mapping (:class:`study.protocol.InputSettings`, whose
+- Mapping. The protocol's ``[input]`` mapping (:class:`study.engine.protocol.InputSettings`, whose
   defaults are a Logitech F710 in XInput mode as SDL2 numbers it on Linux, identical to an
   Xbox pad there) applies to every gamepad. Only when the protocol keeps those defaults is a
   pad recognised by its name given its own known layout (:data:`LAYOUTS`: an Xbox pad under
@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pygame
 
-from study.protocol import DEFAULT_AXES, DEFAULT_BUTTONS, DEFAULT_INVERT, InputSettings
+from study.engine.protocol import DEFAULT_AXES, DEFAULT_BUTTONS, DEFAULT_INVERT, InputSettings
 
 # Known layouts as SDL2 / pygame numbers them, keyed by a lower-case fragment of the name.
 LAYOUTS: dict[str, tuple[dict[str, int], dict[str, int]]] = {

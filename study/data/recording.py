@@ -118,7 +118,7 @@ class _Entities:
 
 ENTITY = _Entities()
 
-# Thesis colours (Fig. 7.26, 7.29, 7.49), as study.scene_plot.COLOURS; repeated here so
+# Thesis colours (Fig. 7.26, 7.29, 7.49), as study.jobs.scene_plot.COLOURS; repeated here so
 # recording does not import matplotlib.
 COLOURS: dict[str, tuple[int, int, int]] = {
     "doorway": (214, 39, 40),

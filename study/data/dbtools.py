@@ -11,7 +11,7 @@
   participant does not exist, trials without their participant or session;
 - no trial left ``running`` outside a ``running`` session;
 - the recording of every completed trial exists beside the database and passes
-  ``rerun rrd verify`` (:func:`study.recording.verify`; ``verify_recordings=False`` skips
+  ``rerun rrd verify`` (:func:`study.data.recording.verify`; ``verify_recordings=False`` skips
   the verification but still checks that the file exists).
 
 Decisions where the spec is silent: the sample count is checked against the largest
@@ -38,8 +38,8 @@ from sqlalchemy import JSON, func, select
 from sqlalchemy.orm import Session
 
 from questionnaires import nasa_tlx
-from study.recording import verify_many
-from study.storage import (
+from study.data.recording import verify_many
+from study.data.storage import (
     Base,
     Event,
     Participant,
@@ -88,7 +88,7 @@ class CheckReport:
 
 def _after_trial(protocol_text: str) -> tuple[bool, str] | None:
     """(questionnaire after main trials?, weights) from a stored protocol, None if unreadable."""
-    from study.protocol import parse_protocol
+    from study.engine.protocol import parse_protocol
 
     try:
         protocol = parse_protocol(protocol_text, "<stored protocol>")

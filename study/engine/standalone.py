@@ -2,7 +2,7 @@
 
 :func:`standalone_trial` makes a fresh study database in a folder (a study, a participant
 and a session row, so the trial's rows have their parents), builds the scene and its
-:class:`sim.world.World`, runs :func:`study.trial.run_trial` exactly as a session does, and
+:class:`sim.world.World`, runs :func:`study.engine.trial.run_trial` exactly as a session does, and
 closes the world. The recording goes to ``<folder>/rec/trial_<id>.rrd``.
 
 Decision: the participant row takes the participant's own ``kind`` and ``parameters``, and
@@ -23,8 +23,8 @@ from sim.occupancy import build_grid
 from sim.scenario import load_scenario
 from sim.semantics import derive_components
 from sim.world import World
-from study.storage import Participant, SessionRow, Study, open_database
-from study.trial import Scene, TrialResult, TrialSpec, TrialWriter, run_trial
+from study.data.storage import Participant, SessionRow, Study, open_database
+from study.engine.trial import Scene, TrialResult, TrialSpec, TrialWriter, run_trial
 from tasks.primary import PrimarySettings
 from tasks.secondary import SecondarySettings
 
@@ -62,7 +62,7 @@ def standalone_trial(
         the trial ends when the route is driven or at ``timeout_s`` [s] of simulated time.
     secondary : questions in the scenario's question region, or None.
     seed : the trial's seed (world noise, questions) and the participant row's.
-    camera_hz, clock, control, on_tick : as :func:`study.trial.run_trial`.
+    camera_hz, clock, control, on_tick : as :func:`study.engine.trial.run_trial`.
 
     Returns
     -------

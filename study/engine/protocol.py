@@ -1,7 +1,7 @@
 """Study protocols: a TOML file validated into frozen dataclasses that carry a whole study.
 
 A protocol says who takes part (how many, seeded how), which control modes are compared
-and how their order is counterbalanced (:mod:`study.counterbalance`), the phases of a
+and how their order is counterbalanced (:mod:`study.engine.counterbalance`), the phases of a
 session in order, the secondary-task settings, the scoring, the analysis, and the
 participant interface's window, instruction texts and gamepad mapping. The session engine
 runs a :class:`Protocol`; storage keeps its ``text`` and ``sha256``.
@@ -118,7 +118,7 @@ from questionnaires import experience as experience_q
 from questionnaires import nasa_tlx
 from sim.fields import FieldReader
 from sim.scenario import Scenario, load_scenario
-from study.counterbalance import SCHEMES
+from study.engine.counterbalance import SCHEMES
 from tasks.secondary import SecondarySettings
 
 PHASE_KINDS: tuple[str, ...] = (
@@ -309,7 +309,7 @@ class Protocol:
     source: str  # the file it was loaded from
     study: StudyInfo
     modes: tuple[str, ...]  # registered mode names, in the file's order
-    counterbalancing: str  # study.counterbalance.SCHEMES
+    counterbalancing: str  # study.engine.counterbalance.SCHEMES
     mode_hidden: bool  # always True
     mode_settings: Mapping[str, Mapping[str, Any]]  # mode -> make_mode keyword settings
     phases: tuple[Phase, ...]  # in the order they run

@@ -265,7 +265,7 @@ def open_database(db: str | Path, *, create: bool = True, durable: bool = True) 
 
     ``durable=False`` skips SQLite's fsync on commit: only for a scratch database that is
     deleted and rebuilt when its process dies (a synthetic study's per-participant file,
-    :mod:`study.synth`); a study database always keeps the default.
+    :mod:`study.jobs.synth`); a study database always keeps the default.
     """
     url = database_url(db)
     if url.startswith("sqlite:///"):

@@ -12,7 +12,7 @@ Per tick, in this order::
 The observation is sensed once per tick, right after the step, and used by the next
 tick's participant and mode, which is the same sequence as sensing at the top of the loop.
 
-Storage (DESIGN.md, "Data"; :mod:`study.storage` holds the models): the trial row is
+Storage (DESIGN.md, "Data"; :mod:`study.data.storage` holds the models): the trial row is
 written with status ``running`` before the first tick; samples, events and question rows
 are buffered and written in one transaction at least once per simulated second
 (``flush_every_ticks = 20``); the end of a trial (the last rows, the outcome, the status
@@ -82,8 +82,8 @@ from sim.occupancy import OccupancyGrid
 from sim.scenario import Scenario, point_in_region
 from sim.types import SemanticComponent
 from sim.world import World
-from study.recording import TrialRecorder
-from study.storage import Event, Question, Sample, Trial, utc_now
+from study.data.recording import TrialRecorder
+from study.data.storage import Event, Question, Sample, Trial, utc_now
 from study.types import ParticipantInput, ScreenState, TickRecord, TrialInfo
 from tasks.primary import PrimarySettings, PrimaryTask, footprint_clearance
 from tasks.secondary import SecondaryEvent, SecondarySettings, SecondaryTask, summarise
@@ -410,7 +410,7 @@ def run_trial(
     Parameters
     ----------
     engine : Engine
-        The study database (:func:`study.storage.open_database`).
+        The study database (:func:`study.data.storage.open_database`).
     spec : TrialSpec
         What the trial is.
     scene : Scene

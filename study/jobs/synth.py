@@ -5,7 +5,7 @@ worker processes, into one database that does not depend on the number of worker
 How it works (decisions where the spec is silent):
 
 - Participants are ``P01`` .. ``PNN`` (two digits at least, more when ``N >= 100``), so
-  the counterbalancing row follows the code (:mod:`study.session`). Participant ``i``
+  the counterbalancing row follows the code (:mod:`study.engine.session`). Participant ``i``
   (from 0) has the seed ``derive_seed(seed, i)`` (stored as the participant's seed and
   used by the session for its trials) and draws its parameters and behaviour from a
   generator seeded with ``derive_seed(seed, i, 1)``: nothing depends on which process
@@ -50,9 +50,9 @@ from sqlalchemy import select
 from sqlalchemy.engine import Connection, Engine
 
 from study.participants.synthetic import Population, SyntheticParticipant
-from study.protocol import Protocol, load_protocol
-from study.session import derive_seed, run_session
-from study.storage import Base, open_database
+from study.engine.protocol import Protocol, load_protocol
+from study.engine.session import derive_seed, run_session
+from study.data.storage import Base, open_database
 
 _CHUNK = 5000  # rows per executemany when copying samples
 
@@ -317,7 +317,7 @@ def run_synthetic_study(
     Parameters
     ----------
     protocol : Protocol or str
-        A loaded protocol or a shipped name / TOML file (:func:`study.protocol.load_protocol`).
+        A loaded protocol or a shipped name / TOML file (:func:`study.engine.protocol.load_protocol`).
     db : str or Path
         SQLite file (created if missing; participants already in it are skipped).
     participants : int

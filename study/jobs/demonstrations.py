@@ -404,7 +404,7 @@ def record_run(
     if start is None:
         raise ValueError(
             f"scene {scenario.name}: no {TARGET_KIND[task_type]} has a feasible start for "
-            f"{task_type} (see study.demonstrations.sample_start)"
+            f"{task_type} (see study.jobs.demonstrations.sample_start)"
         )
     stick = HumanStick(
         replace(settings.stick, preferred_speed=float(rng.uniform(*settings.preferred_speed)))

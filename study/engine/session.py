@@ -7,9 +7,9 @@ of attempts), a baseline block of the secondary task without driving, the main t
 the participant's counterbalanced order with NASA-TLX after each, and the debrief. The
 active mode is never shown to the participant (no ``ScreenState`` field names it).
 
-Storage (:mod:`study.storage`, DESIGN.md "Data"): the study row (protocol text and SHA-256),
+Storage (:mod:`study.data.storage`, DESIGN.md "Data"): the study row (protocol text and SHA-256),
 the participant row (code, kind, parameters, order index, mode order, seed), a session
-row, and per trial what :func:`study.trial.run_trial` writes. A database made with a
+row, and per trial what :func:`study.engine.trial.run_trial` writes. A database made with a
 different protocol, or a second session for a participant, is refused with a
 ``ValueError`` unless ``force``; a forced run is recorded in ``session.forced`` and
 ``session.note``. ``resume`` continues the participant's last session: a trial left
@@ -21,7 +21,7 @@ Decisions where the spec is silent:
 - Order index: a code ending in a number ``n >= 1`` (``P03``) gets row ``n - 1`` of the
   counterbalancing scheme, so that codes and orders match the plan ``asa plan`` prints;
   any other code gets the smallest index no participant of the study has. The order is
-  ``study.counterbalance.assign_indexed`` row ``order_index`` (the random scheme draws
+  ``study.engine.counterbalance.assign_indexed`` row ``order_index`` (the random scheme draws
   from a generator seeded with the study seed).
 - Seeds: the participant's seed is ``seed`` if given, else :func:`default_seed` of the
   study seed and the participant code (what ``asa run`` uses too); each trial's seed is
@@ -80,8 +80,8 @@ from sim.scenario import load_scenario
 from sim.semantics import derive_components
 from sim.world import World
 from study import __version__
-from study.counterbalance import assign_indexed, cycle_length
-from study.protocol import (
+from study.engine.counterbalance import assign_indexed, cycle_length
+from study.engine.protocol import (
     Baseline,
     Briefing,
     Debrief,
@@ -91,7 +91,7 @@ from study.protocol import (
     Protocol,
     Training,
 )
-from study.storage import (
+from study.data.storage import (
     Event,
     Participant,
     Response,
@@ -103,7 +103,7 @@ from study.storage import (
     open_database,
     utc_now,
 )
-from study.trial import (
+from study.engine.trial import (
     ExperimenterControl,
     FreeClock,
     Scene,
@@ -635,7 +635,7 @@ def run_session(
     Parameters
     ----------
     protocol : Protocol
-        The validated protocol (:func:`study.protocol.load_protocol`).
+        The validated protocol (:func:`study.engine.protocol.load_protocol`).
     participant_code : str
         Pseudonymous code (:func:`check_code`).
     db : str or Path
@@ -658,14 +658,14 @@ def run_session(
     camera_hz : float, optional
         Camera frames per second in the recordings; default 2 for humans, else 0.
     on_tick : callable, optional
-        Passed to :func:`study.trial.run_trial`.
+        Passed to :func:`study.engine.trial.run_trial`.
     recordings : str or Path, optional
         Folder for the trials' rerun recordings (``<code>/...rrd`` inside it); default
         ``<db stem>_recordings`` beside the database. Paths are stored relative to the
         database's folder.
     durable : bool
         False only for a scratch database thrown away after a crash (no fsync on commit:
-        :func:`study.storage.open_database`); a synthetic study's per-participant file.
+        :func:`study.data.storage.open_database`); a synthetic study's per-participant file.
 
     Returns
     -------

@@ -1,0 +1,1 @@
+"""The session engine: protocols, counterbalancing, sessions and the trial loop."""

@@ -1,0 +1,1 @@
+"""Long jobs as plain functions: synthetic studies, demonstrations, scene drawings."""
