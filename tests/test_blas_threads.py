@@ -8,7 +8,7 @@ import sys
 
 PROBE = """
 import concurrent.futures as cf, multiprocessing
-from study.cli import limit_blas_threads
+from study._blas import limit_blas_threads
 
 def threads():
     import numpy, scipy.linalg  # noqa: F401  (loads the BLAS libraries)

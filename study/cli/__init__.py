@@ -21,6 +21,7 @@ import sys
 import click
 
 from study import __version__
+from study._blas import limit_blas_threads
 
 # name -> ("module:attribute", one-line help shown by ``asa --help``)
 COMMANDS: dict[str, tuple[str, str]] = {
@@ -94,32 +95,6 @@ def _one_line(error: BaseException) -> str:
     if isinstance(error, FileNotFoundError) and error.filename:
         text = f"{error.filename}: no such file"
     return " ".join(text.split())
-
-
-def limit_blas_threads() -> None:
-    """One BLAS thread per process unless ``ASA_BLAS_THREADS`` says otherwise.
-
-    The per-tick linear algebra is small (10 candidates, 500 basis vectors): several
-    BLAS threads only contend with each other and with worker processes, which on a
-    2-core machine made the SOGP and the benchmark 5-8 times slower.
-
-    BLAS reads its thread count when it is loaded, so the limit goes into the
-    environment (``OPENBLAS_NUM_THREADS``, ``MKL_NUM_THREADS``, ``OMP_NUM_THREADS``):
-    it then holds for numpy loaded later in this process and in every worker process
-    it starts. ``threadpoolctl`` only reaches libraries already loaded, so it is used
-    as well when numpy is. Also a worker pool's initializer.
-    """
-    threads = os.environ.get("ASA_BLAS_THREADS", "1")
-    if not threads.isdigit() or int(threads) < 1:
-        raise ValueError(
-            f"environment variable ASA_BLAS_THREADS: must be a positive integer, got {threads!r}"
-        )
-    for name in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "OMP_NUM_THREADS"):
-        os.environ[name] = threads
-    if "numpy" in sys.modules:
-        from threadpoolctl import threadpool_limits
-
-        threadpool_limits(int(threads), user_api="blas")
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -49,10 +49,10 @@ from typing import Any
 from sqlalchemy import select
 from sqlalchemy.engine import Connection, Engine
 
-from study.participants.synthetic import Population, SyntheticParticipant
+from study.data.storage import Base, open_database
 from study.engine.protocol import Protocol, load_protocol
 from study.engine.session import derive_seed, run_session
-from study.data.storage import Base, open_database
+from study.participants.synthetic import Population, SyntheticParticipant
 
 _CHUNK = 5000  # rows per executemany when copying samples
 
@@ -109,7 +109,7 @@ def _run_job(job: _Job) -> _Done:
     import numpy as np
 
     try:
-        from study.cli import limit_blas_threads
+        from study._blas import limit_blas_threads
 
         limit_blas_threads()
     except ValueError:
@@ -317,7 +317,8 @@ def run_synthetic_study(
     Parameters
     ----------
     protocol : Protocol or str
-        A loaded protocol or a shipped name / TOML file (:func:`study.engine.protocol.load_protocol`).
+        A loaded protocol or a shipped name / TOML file
+        (:func:`study.engine.protocol.load_protocol`).
     db : str or Path
         SQLite file (created if missing; participants already in it are skipped).
     participants : int
