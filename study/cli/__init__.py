@@ -7,16 +7,19 @@ To add one, write ``study/cli/<name>.py`` exposing a click command or group
 and add a line to ``COMMANDS``.
 
 Bad input anywhere (a malformed file, an unknown name, an impossible option)
-is raised as ``ValueError``/``TypeError`` (or ``FileNotFoundError``) with the
-file, field and what is allowed; :func:`main` turns it into one line on stderr
-and exit status 2. Set ``ASA_DEBUG=1`` to see the traceback instead.
+is raised as ``ValueError`` (or ``FileNotFoundError``) with the file, field and
+what is allowed; :func:`main` turns it, and click's usage errors, into one line
+on stderr and exit status 2. Any other exception is a bug and keeps its
+traceback. Set ``ASA_DEBUG=1`` to see the traceback of bad input too.
 """
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import os
 import sys
+from collections.abc import Iterator
 
 import click
 
@@ -97,6 +100,24 @@ def _one_line(error: BaseException) -> str:
     return " ".join(text.split())
 
 
+@contextlib.contextmanager
+def flag_errors(*parameters: str) -> Iterator[None]:
+    """Name the flag in a library ``ValueError`` that names one of ``parameters``.
+
+    The library speaks Python (``"participants: must be ..."``); the command line words
+    the same error with its flag (``"--participants: must be ..."``).
+    """
+    try:
+        yield
+    except ValueError as error:
+        text = str(error)
+        for name in parameters:
+            if text.startswith(f"{name}: "):
+                flag = "--" + name.replace("_", "-")
+                raise ValueError(flag + text[len(name) :]) from error
+        raise
+
+
 def main(argv: list[str] | None = None) -> None:
     """Entry point of the ``asa`` console script."""
     debug = os.environ.get("ASA_DEBUG") == "1"
@@ -110,14 +131,8 @@ def main(argv: list[str] | None = None) -> None:
         # Bad options or arguments: click's own message, on one line.
         click.echo(f"asa: {' '.join(error.format_message().split())}", err=True)
         sys.exit(2)
-    except (
-        ValueError,
-        TypeError,
-        FileNotFoundError,
-        IsADirectoryError,
-        NotADirectoryError,
-        PermissionError,
-    ) as error:
+    except (ValueError, FileNotFoundError) as error:
+        # Bad input, named by the library; any other exception is a bug: a traceback.
         if debug:
             raise
         click.echo(f"asa: error: {_one_line(error)}", err=True)

@@ -49,6 +49,7 @@ from study.data.storage import (
     SessionRow,
     Trial,
     database_file,
+    database_url,
     get_study,
     open_database,
 )
@@ -270,6 +271,66 @@ def _check_recording(
         to_verify.append((path, where))
 
 
+# ------------------------------------------------------------------------- replay
+
+
+def find_recording(db: str | Path, participant: str, trial: int) -> Path:
+    """The ``.rrd`` file of trial ``trial`` (row id) of participant ``participant``.
+
+    Raises
+    ------
+    ValueError
+        Naming the database and the field (``participant.code``, ``trial.id``,
+        ``trial.recording_path``) when the participant or trial is unknown, or the
+        trial has no recording or its file is missing.
+    """
+    engine = open_database(db, create=False)
+    try:
+        with Session(engine) as s:
+            person = s.scalars(select(Participant).where(Participant.code == participant)).first()
+            if person is None:
+                codes = s.scalars(select(Participant.code).order_by(Participant.code)).all()
+                known = ", ".join(codes[:20]) + (" ..." if len(codes) > 20 else "")
+                raise ValueError(
+                    f"{db}: field 'participant.code': no participant {participant!r} "
+                    f"(known: {known or 'none'})"
+                )
+            row = s.get(Trial, trial)
+            if row is None or row.participant_id != person.id:
+                trials = s.scalars(
+                    select(Trial).where(Trial.participant_id == person.id).order_by(Trial.id)
+                ).all()
+                listed = "; ".join(
+                    f"{t.id} ({t.phase} {t.ordinal}"
+                    + (f" attempt {t.attempt}" if t.attempt else "")
+                    + (f", {t.mode}" if t.mode else "")
+                    + ")"
+                    for t in trials
+                )
+                raise ValueError(
+                    f"{db}: field 'trial.id': participant {participant} has no trial {trial} "
+                    f"(trial ids: {listed or 'none'})"
+                )
+            stored = row.recording_path
+    finally:
+        engine.dispose()
+    if not stored:
+        raise ValueError(
+            f"{db}: field 'trial.recording_path': trial {trial} of {participant} has no recording"
+        )
+    path = Path(stored)
+    if not path.is_absolute():
+        url = database_url(db)
+        base = Path(url[len("sqlite:///") :]).parent if url.startswith("sqlite:///") else Path()
+        path = base / path
+    if not path.is_file():
+        raise ValueError(
+            f"{db}: field 'trial.recording_path': the recording of trial {trial} of "
+            f"{participant} is missing ({path})"
+        )
+    return path
+
+
 # ------------------------------------------------------------------------- export
 
 
@@ -298,7 +359,7 @@ def export(db: str | Path, out: str | Path) -> dict[str, int]:
     engine = open_database(db, create=False)
     folder = Path(out)
     if folder.exists() and not folder.is_dir():
-        raise ValueError(f"{out}: --out must be a folder, and this is a file")
+        raise ValueError(f"out: {out} must be a folder, and this is a file")
     folder.mkdir(parents=True, exist_ok=True)
     written: dict[str, int] = {}
     try:

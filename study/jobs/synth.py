@@ -229,7 +229,7 @@ def merge_participant(src: Path, dst: Engine, *, src_folder: Path, dst_folder: P
             if have[0]["protocol_sha256"] != study[0]["protocol_sha256"]:
                 raise ValueError(
                     f"field 'study.protocol_sha256': the database holds study "
-                    f"{have[0]['name']!r} of another protocol; use a new --db"
+                    f"{have[0]['name']!r} of another protocol; use a new database file"
                 )
         else:
             study_id = _insert(conn, "study", study[0])
@@ -348,16 +348,16 @@ def run_synthetic_study(
     """
     start = time.perf_counter()
     say = progress if progress is not None else (lambda line: None)
-    n = _check_int(participants, "--participants", 1)
-    seed = _check_int(seed, "--seed", 0)
-    workers = _check_int(workers, "--workers", 1)
+    n = _check_int(participants, "participants", 1)
+    seed = _check_int(seed, "seed", 0)
+    workers = _check_int(workers, "workers", 1)
     if "://" in str(db):
-        raise ValueError(f"--db: a SQLite file path is needed for synthetic studies, got {db}")
+        raise ValueError(f"db: a SQLite file path is needed for synthetic studies, got {db}")
     proto = load_protocol(protocol) if isinstance(protocol, str | Path) else protocol
     population = population if population is not None else Population()
     db_path = Path(db).resolve()
     if db_path.exists() and db_path.is_dir():
-        raise ValueError(f"--db: {db} is a folder; give a database file")
+        raise ValueError(f"db: {db} is a folder; give a database file")
     folder = db_path.parent
     folder.mkdir(parents=True, exist_ok=True)
     work = folder / f"{db_path.stem}_work"
@@ -371,7 +371,7 @@ def run_synthetic_study(
     if sha is not None and sha != proto.sha256:
         raise ValueError(
             f"{db}: field 'study.protocol_sha256': the database was made with another "
-            f"protocol than {proto.source}; use a new --db"
+            f"protocol than {proto.source}; use a new database file"
         )
     todo = [i for i, code in enumerate(codes) if code not in merged]
     skipped = tuple(c for c in codes if c in merged)
