@@ -1,0 +1,514 @@
+"""Reading a protocol's TOML file into a :class:`~study.engine.protocol.types.Protocol`.
+
+Tables and fields (every one optional unless marked; unknown keys are refused):
+``[study]`` name (required), title, description, participants, seed;
+``[modes]`` names (required, >= 2, distinct), counterbalancing, hidden,
+``[modes.settings.<mode>]``; ``[[phases]]`` kind, in the order they run ("main"
+required, with its scenario; ``[phases.after_trial]`` instrument, weights);
+``[secondary]`` p_correct, timeout_s, gap_s, near_miss_offsets, p_addition;
+``[scoring]`` collision_penalty_s; ``[analysis]`` alpha, gate, posthoc, metrics,
+secondary_baseline_level; ``[ui]`` window, fullscreen, show_map, ``[ui.instructions]``;
+``[input]`` deadzone, ``[input.axes]``, ``[input.buttons]``, invert.
+The shipped files in ``protocols/`` show every table.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import itertools
+import tomllib
+from collections.abc import Collection, Mapping
+from pathlib import Path
+from typing import Any
+
+from autonomy.modes import available_modes, make_mode
+from protocols import PROTOCOL_DIR, available
+from questionnaires import nasa_tlx
+from sim.fields import FieldReader
+from sim.scenario import Scenario, load_scenario
+from study.engine.counterbalance import SCHEMES
+from study.engine.protocol.types import (
+    AFTER_TRIAL_INSTRUMENTS,
+    AXES,
+    BUTTONS,
+    DEFAULT_AXES,
+    DEFAULT_BUTTONS,
+    DEFAULT_INVERT,
+    EXPERIENCE_INSTRUMENTS,
+    GATES,
+    METRICS,
+    ON_FAIL,
+    PHASE_KINDS,
+    POSTHOC,
+    PRACTICE_ORDERS,
+    ROUTE_POINTS,
+    TLX_WEIGHTS,
+    AfterTrial,
+    AnalysisSettings,
+    Baseline,
+    Briefing,
+    Debrief,
+    ExperiencePhase,
+    InputSettings,
+    MainTrials,
+    Phase,
+    Practice,
+    Protocol,
+    Scoring,
+    StudyInfo,
+    Training,
+    UiSettings,
+)
+from tasks.secondary import SecondarySettings
+
+
+def _raw(r: FieldReader, key: str, default: Any = None) -> Any:
+    """The raw value of ``key`` (marked as known), ``default`` when absent, or "is required"."""
+    r.used.add(key)
+    if key in r.data:
+        return r.data[key]
+    if default is None:
+        raise r.fail(key, "is required")
+    return default
+
+
+def _boolean(r: FieldReader, key: str, default: bool) -> bool:
+    value = _raw(r, key, default)
+    if not isinstance(value, bool):
+        raise r.fail(key, f"must be true or false, got {value!r}")
+    return value
+
+
+def _text(r: FieldReader, key: str, default: str | None = None) -> str:
+    value = r.string(key, default)
+    if default is None and not value.strip():
+        raise r.fail(key, "must not be empty")
+    return value
+
+
+def _string_list(
+    r: FieldReader,
+    key: str,
+    default: list[str] | None,
+    *,
+    allowed: Collection[str] = (),
+    unique: bool = True,
+) -> tuple[str, ...]:
+    value = _raw(r, key, default)
+    if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
+        raise r.fail(key, f"must be a list of strings, got {value!r}")
+    for i, v in enumerate(value):
+        if allowed and v not in allowed:
+            raise r.fail(f"{key}[{i}]", f"must be one of {', '.join(allowed)}, got {v!r}")
+    duplicates = sorted({v for v in value if value.count(v) > 1})
+    if duplicates and unique:
+        raise r.fail(key, f"must not repeat names; {duplicates[0]!r} appears twice")
+    return tuple(value)
+
+
+class _Scenarios:
+    """Loads each scenario a protocol names once, naming the protocol's field on failure.
+
+    A shipped scenario is named as it is (``"cluttered_room"``); a file ending in
+    ``.toml`` is taken relative to the protocol's folder and kept as that resolved path, so
+    that :func:`sim.scenario.load_scenario` finds it from anywhere.
+    """
+
+    def __init__(self, base: Path) -> None:
+        self.base = base
+        self.cache: dict[str, Scenario] = {}
+
+    def get(self, r: FieldReader, key: str) -> tuple[str, Scenario]:
+        name = _text(r, key)
+        if name.endswith(".toml") and not Path(name).is_absolute():
+            name = str(self.base / name)
+        if name not in self.cache:
+            try:
+                self.cache[name] = load_scenario(name)
+            except (ValueError, FileNotFoundError, OSError) as error:
+                raise r.fail(key, f"cannot load scenario {name!r}: {error}") from None
+        return name, self.cache[name]
+
+
+def _training(r: FieldReader, modes: tuple[str, ...], scenarios: _Scenarios) -> Training:
+    name, scenario = scenarios.get(r, "scenario")
+    duration = r.number("duration_s", positive=True) if "duration_s" in r.data else None
+    secondary = _boolean(r, "secondary", True)
+    if secondary and len(scenario.question_region) < 3:
+        raise r.fail("secondary", f"scenario {name!r} has no question region")
+    phase = Training(
+        scenario=name,
+        duration_s=duration,
+        secondary=secondary,
+        direct_view=_boolean(r, "direct_view", True),
+        modes=_string_list(r, "modes", list(modes), allowed=modes),
+    )
+    if not phase.modes:
+        raise r.fail("modes", "must name at least one of the protocol's modes")
+    r.finish()
+    return phase
+
+
+def _practice(r: FieldReader, scenarios: _Scenarios) -> Practice:
+    name, scenario = scenarios.get(r, "scenario")
+    if scenario.dock is None:
+        raise r.fail("scenario", f"scenario {name!r} has no [dock] goal pose to reach")
+    secondary = _boolean(r, "secondary", False)
+    if secondary and len(scenario.question_region) < 3:
+        raise r.fail("secondary", f"scenario {name!r} has no question region")
+    phase = Practice(
+        scenario=name,
+        time_limit_s=r.number("time_limit_s", positive=True),
+        max_collisions=r.integer("max_collisions", 0, minimum=0),
+        max_attempts=r.integer("max_attempts", 3, minimum=1),
+        secondary=secondary,
+        order=r.string("order", "assigned", allowed=PRACTICE_ORDERS),
+        on_fail=r.string("on_fail", "exclude", allowed=ON_FAIL),
+    )
+    r.finish()
+    return phase
+
+
+def _after_trial(r: FieldReader) -> AfterTrial:
+    a = AfterTrial(
+        instrument=r.string("instrument", nasa_tlx.INSTRUMENT_ID, allowed=AFTER_TRIAL_INSTRUMENTS),
+        weights=r.string("weights", "per_trial", allowed=TLX_WEIGHTS),
+    )
+    r.finish()
+    return a
+
+
+def _main(r: FieldReader, scenarios: _Scenarios) -> MainTrials:
+    name, scenario = scenarios.get(r, "scenario")
+    route = _string_list(r, "route", ["A", "B", "A"], allowed=ROUTE_POINTS, unique=False)
+    if len(route) < 2 or route[0] != "A" or any(a == b for a, b in itertools.pairwise(route)):
+        raise r.fail(
+            "route",
+            f"must start at 'A' and alternate between 'A' and 'B' (e.g. A, B, A), "
+            f"got {list(route)}",
+        )
+    if "B" in route and scenario.dock is None:
+        raise r.fail("route", f"goes to B, but scenario {name!r} has no [dock] pose")
+    inspection = _boolean(r, "inspection", True)
+    if inspection and not scenario.inspection_object:
+        raise r.fail("inspection", f"scenario {name!r} has no inspection_object")
+    secondary = _boolean(r, "secondary", True)
+    if secondary and len(scenario.question_region) < 3:
+        raise r.fail("secondary", f"scenario {name!r} has no question region")
+    # an empty [phases.after_trial] table still asks the questionnaire, with the defaults
+    after = _after_trial(r.sub("after_trial")) if "after_trial" in r.data else None
+    phase = MainTrials(
+        scenario=name,
+        route=route,
+        inspection=inspection,
+        timeout_s=r.number("timeout_s", 900.0, positive=True),
+        secondary=secondary,
+        block_size=r.integer("block_size", 20, minimum=1),
+        end_on_collision=_boolean(r, "end_on_collision", False),
+        after_trial=after,
+    )
+    r.finish()
+    return phase
+
+
+def _phases(r: FieldReader, modes: tuple[str, ...], scenarios: _Scenarios) -> tuple[Phase, ...]:
+    readers = r.tables("phases")
+    if not readers:
+        raise r.fail("phases", 'is required: at least a [[phases]] table with kind = "main"')
+    phases: list[Phase] = []
+    last = -1
+    for pr in readers:
+        kind = pr.string("kind", allowed=PHASE_KINDS)
+        rank = PHASE_KINDS.index(kind)
+        if rank <= last:
+            seen = phases[-1].kind
+            what = "appears twice" if kind == seen else f"comes after {seen!r}"
+            raise pr.fail(
+                "kind",
+                f"phase {kind!r} {what}; phases run once each in the order "
+                f"{', '.join(PHASE_KINDS)}",
+            )
+        last = rank
+        if kind == "briefing":
+            phase: Phase = Briefing(text=_text(pr, "text"))
+            pr.finish()
+        elif kind == "experience":
+            phase = ExperiencePhase(
+                instrument=pr.string("instrument", "experience", allowed=EXPERIENCE_INSTRUMENTS)
+            )
+            pr.finish()
+        elif kind == "training":
+            phase = _training(pr, modes, scenarios)
+        elif kind == "practice":
+            phase = _practice(pr, scenarios)
+        elif kind == "baseline":
+            phase = Baseline(questions=pr.integer("questions", 40, minimum=1))
+            pr.finish()
+        elif kind == "main":
+            phase = _main(pr, scenarios)
+        else:
+            phase = Debrief(text=_text(pr, "text"))
+            pr.finish()
+        phases.append(phase)
+    if not any(isinstance(p, MainTrials) for p in phases):
+        raise r.fail("phases", 'must include a phase with kind = "main"')
+    return tuple(phases)
+
+
+def _secondary(r: FieldReader) -> SecondarySettings:
+    for key, place in (("block_size", "main"), ("baseline_size", "baseline")):
+        if key in r.data:
+            where = "block_size" if key == "block_size" else "questions"
+            raise r.fail(key, f"is set in the {place!r} phase, as '{where}'")
+    d = SecondarySettings()
+    offsets = _raw(r, "near_miss_offsets", list(d.near_miss_offsets))
+    if not isinstance(offsets, list):
+        raise r.fail("near_miss_offsets", f"must be a list of integers, got {offsets!r}")
+    try:
+        s = SecondarySettings(
+            p_correct=r.number("p_correct", d.p_correct),
+            timeout_s=r.number("timeout_s", d.timeout_s),
+            gap_s=r.number("gap_s", d.gap_s),
+            near_miss_offsets=tuple(offsets),
+            p_addition=r.number("p_addition", d.p_addition),
+        )
+    except ValueError as error:  # "SecondarySettings.<field>: <message>"
+        key, _, message = str(error).removeprefix("SecondarySettings.").partition(": ")
+        raise r.fail(key, message) from None
+    r.finish()
+    return s
+
+
+def _analysis(r: FieldReader) -> AnalysisSettings:
+    alpha = r.number("alpha", 0.05, positive=True)
+    if alpha >= 1:
+        raise r.fail("alpha", f"must lie in (0, 1), got {alpha!r}")
+    a = AnalysisSettings(
+        alpha=alpha,
+        gate=r.string("gate", "auto", allowed=GATES),
+        posthoc=r.string("posthoc", "lsd_paired", allowed=POSTHOC),
+        metrics=_string_list(
+            r,
+            "metrics",
+            [
+                "completion_time_s",
+                "collisions",
+                "score_s",
+                "secondary_answer_time_s",
+                "secondary_errors",
+                "tlx_raw",
+            ],
+            allowed=METRICS,
+        ),
+        secondary_baseline_level=_boolean(r, "secondary_baseline_level", True),
+    )
+    if not a.metrics:
+        raise r.fail("metrics", f"must name at least one of {', '.join(METRICS)}")
+    r.finish()
+    return a
+
+
+def _ui(r: FieldReader) -> UiSettings:
+    window = r.vector("window", 2, [1280, 720], positive=True)
+    if not all(v == int(v) and v >= 320 for v in window):
+        raise r.fail("window", f"must be two whole numbers of pixels >= 320, got {list(window)}")
+    ir = r.sub("instructions")
+    texts = {}
+    for kind in PHASE_KINDS:
+        if kind in ir.data:
+            texts[kind] = _text(ir, kind)
+    ir.finish()
+    u = UiSettings(
+        window=(int(window[0]), int(window[1])),
+        fullscreen=_boolean(r, "fullscreen", False),
+        show_map=_boolean(r, "show_map", True),
+        instructions=texts,
+    )
+    r.finish()
+    return u
+
+
+def _indices(
+    r: FieldReader, names: tuple[str, ...], defaults: Mapping[str, int]
+) -> Mapping[str, int]:
+    out = {name: r.integer(name, defaults[name], minimum=0) for name in names}
+    r.finish()
+    values = list(out.values())
+    duplicates = sorted({v for v in values if values.count(v) > 1})
+    if duplicates:
+        clash = [n for n, v in out.items() if v == duplicates[0]]
+        raise r.fail(clash[1], f"uses index {duplicates[0]} as {clash[0]!r} does")
+    return out
+
+
+def _input(r: FieldReader) -> InputSettings:
+    deadzone = r.number("deadzone", 0.1, non_negative=True)
+    if deadzone >= 1:
+        raise r.fail("deadzone", f"must lie in [0, 1), got {deadzone!r}")
+    s = InputSettings(
+        axes=_indices(r.sub("axes"), AXES, DEFAULT_AXES),
+        buttons=_indices(r.sub("buttons"), BUTTONS, DEFAULT_BUTTONS),
+        invert=_string_list(r, "invert", list(DEFAULT_INVERT), allowed=AXES),
+        deadzone=deadzone,
+    )
+    r.finish()
+    return s
+
+
+def _modes(
+    r: FieldReader, known: Collection[str]
+) -> tuple[tuple[str, ...], str, bool, Mapping[str, Mapping[str, Any]]]:
+    names = _string_list(r, "names", None)
+    for i, name in enumerate(names):
+        if name not in known:
+            raise r.fail(
+                f"names[{i}]",
+                f"unknown mode {name!r}; registered modes: {', '.join(sorted(known)) or 'none'}",
+            )
+    if len(names) < 2:
+        raise r.fail("names", f"a comparison needs at least two modes, got {list(names)}")
+    scheme = r.string("counterbalancing", "full_permutation", allowed=SCHEMES)
+    hidden = _boolean(r, "hidden", True)
+    if not hidden:
+        raise r.fail(
+            "hidden",
+            "must be true: the participant is never told the active mode (thesis 7.5, 7.6.1.3)",
+        )
+    sr = r.sub("settings")
+    settings: dict[str, Mapping[str, Any]] = {}
+    for name in list(sr.data):
+        if name not in names:
+            raise sr.fail(name, f"must be one of this protocol's modes ({', '.join(names)})")
+        values = sr.table(name) or {}
+        try:
+            make_mode(name, **values)
+        except (ValueError, TypeError) as error:
+            raise sr.fail(name, str(error)) from None
+        settings[name] = dict(values)
+    sr.finish()
+    r.finish()
+    return names, scheme, hidden, settings
+
+
+def _study(r: FieldReader) -> StudyInfo:
+    study = StudyInfo(
+        name=_text(r, "name"),
+        title=r.string("title", ""),
+        description=r.string("description", ""),
+        participants=r.integer("participants", 18, minimum=1),
+        seed=r.integer("seed", 0, minimum=0),
+    )
+    r.finish()
+    return study
+
+
+def _scoring(r: FieldReader) -> Scoring:
+    scoring = Scoring(collision_penalty_s=r.number("collision_penalty_s", 60.0, non_negative=True))
+    r.finish()
+    return scoring
+
+
+def parse_protocol(
+    text: str,
+    source: str = "<protocol>",
+    *,
+    known_modes: Collection[str] | None = None,
+    base: Path | None = None,
+) -> Protocol:
+    """Validate a protocol's TOML ``text`` into a :class:`Protocol`.
+
+    Parameters
+    ----------
+    text : str
+        The file's content; kept verbatim with its SHA-256.
+    source : str
+        Names the file in error messages.
+    known_modes : collection of str, optional
+        The mode names accepted; default the registry,
+        :func:`autonomy.modes.available_modes`.
+    base : Path, optional
+        Folder against which relative scenario files (``*.toml``) are resolved; default
+        the folder of ``source`` when it names a file, else the working directory.
+
+    Raises
+    ------
+    ValueError
+        Malformed TOML or any bad field, naming ``source`` and the field.
+    """
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as error:
+        raise ValueError(f"{source}: not valid TOML: {error}") from None
+    known = available_modes() if known_modes is None else known_modes
+    if base is None:
+        base = Path(source).parent if Path(source).is_file() else Path.cwd()
+    r = FieldReader(source, data)
+    study = _study(r.sub("study"))
+    if "modes" not in data:
+        raise r.fail("modes", "is required: a [modes] table with names = [...]")
+    modes, scheme, hidden, settings = _modes(r.sub("modes"), known)
+    scenarios = _Scenarios(base)
+    phases = _phases(r, modes, scenarios)
+    secondary = _secondary(r.sub("secondary"))
+    scoring = _scoring(r.sub("scoring"))
+    analysis = _analysis(r.sub("analysis"))
+    ui = _ui(r.sub("ui"))
+    inp = _input(r.sub("input"))
+    r.finish()
+    return Protocol(
+        source=source,
+        study=study,
+        modes=modes,
+        counterbalancing=scheme,
+        mode_hidden=hidden,
+        mode_settings=settings,
+        phases=phases,
+        secondary=secondary,
+        scoring=scoring,
+        analysis=analysis,
+        ui=ui,
+        input=inp,
+        text=text,
+        sha256=hashlib.sha256(text.encode("utf-8")).hexdigest(),
+    )
+
+
+def protocol_path(path_or_name: str | Path) -> Path:
+    """The file of a shipped protocol name (``"thesis-7-6"``) or of a path.
+
+    Raises ``ValueError`` naming the argument when neither exists.
+    """
+    text = str(path_or_name)
+    path = Path(text)
+    if path.is_file():
+        return path
+    shipped = PROTOCOL_DIR / f"{text}.toml"
+    if not path.suffix and shipped.is_file():
+        return shipped
+    if path.is_dir():
+        raise ValueError(f"{text}: is a directory, not a protocol file")
+    raise ValueError(
+        f"{text}: no such protocol file and not a shipped protocol; shipped: "
+        f"{', '.join(available())}"
+    )
+
+
+def load_protocol(
+    path_or_name: str | Path, *, known_modes: Collection[str] | None = None
+) -> Protocol:
+    """Load a shipped protocol by name (``"thesis-7-6"``) or any protocol TOML file by path.
+
+    Every failure is a ``ValueError`` naming the file (and the field): a missing or
+    unreadable file, malformed TOML, a bad field, an unknown mode or scenario.
+    ``known_modes`` as in :func:`parse_protocol`.
+    """
+    path = protocol_path(path_or_name)
+    try:
+        raw = path.read_bytes()
+    except OSError as error:
+        raise ValueError(f"{path}: cannot read: {error.strerror or error}") from None
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError:
+        raise ValueError(f"{path}: not a UTF-8 text file") from None
+    return parse_protocol(text, str(path), known_modes=known_modes)
