@@ -38,7 +38,7 @@ def replay(db: Path, participant: str, trial: int, print_only: bool) -> None:
     """
     # imported here so that `asa replay --help` does not load rerun
     from study.data.dbtools import find_recording
-    from study.data.recording import format_summary, open_viewer, recording_summary
+    from study.data.rrd import format_summary, open_viewer, recording_summary
 
     path = find_recording(db, participant, trial)
     if print_only:

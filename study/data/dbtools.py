@@ -38,7 +38,7 @@ from sqlalchemy import JSON, func, select
 from sqlalchemy.orm import Session
 
 from questionnaires import nasa_tlx
-from study.data.recording import verify_many
+from study.data.rrd import verify_many
 from study.data.storage import (
     Base,
     Event,
