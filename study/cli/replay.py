@@ -1,6 +1,6 @@
 """``asa replay``: open a trial's rerun recording, or print what it holds
-(:func:`study.data.dbtools.find_recording`, :func:`study.data.recording.recording_summary`,
-:func:`study.data.recording.open_viewer`)."""
+(:func:`study.data.dbtools.find_recording`, :func:`study.data.rrd.recording_summary`,
+:func:`study.data.rrd.open_viewer`)."""
 
 from __future__ import annotations
 
