@@ -3,8 +3,8 @@ recording and the ``asa`` command line.
 
 The jobs of the command line are plain functions first (DESIGN.md, "Interfaces"):
 ``study.run_session`` (one participant's session), ``study.run_synthetic_study`` (a whole
-study of synthetic participants), ``study.load_protocol``; they are imported on first use,
-so ``import study`` stays light.
+study of synthetic participants), ``study.run_pilot`` (a pilot study and its report),
+``study.load_protocol``; they are imported on first use, so ``import study`` stays light.
 """
 
 import os
@@ -23,6 +23,7 @@ except PackageNotFoundError:  # running from a source tree that is not installed
 _LAZY = {
     "run_session": "study.engine.session",
     "run_synthetic_study": "study.jobs.synth",
+    "run_pilot": "study.jobs.pilot",
     "load_protocol": "study.engine.protocol",
 }
 

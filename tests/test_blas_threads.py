@@ -5,10 +5,13 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]  # the checkout under test, not an installed copy
 
 PROBE = """
 import concurrent.futures as cf, multiprocessing
-from study.cli import limit_blas_threads
+from study._blas import limit_blas_threads
 
 def threads():
     import numpy, scipy.linalg  # noqa: F401  (loads the BLAS libraries)
@@ -28,6 +31,7 @@ def test_blas_runs_one_thread_here_and_in_spawned_workers(tmp_path):
     script.write_text(PROBE)
     env = {k: v for k, v in os.environ.items() if not k.endswith("_NUM_THREADS")}
     env.pop("ASA_BLAS_THREADS", None)
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT), env.get("PYTHONPATH")]))
     out = subprocess.run(
         [sys.executable, str(script)], env=env, capture_output=True, text=True, timeout=120
     )

@@ -21,12 +21,14 @@ from sim.semantics import derive_components
 from sim.types import Pose2D
 from study.cli import main
 from study.data.recording import (
-    ANALYTICS_OFF_ENV,
     ENTITY,
     TIMELINE,
     RecorderSettings,
     TrialRecorder,
     recording_id,
+)
+from study.data.rrd import (
+    ANALYTICS_OFF_ENV,
     recording_summary,
     rerun_environment,
     rerun_executable,
@@ -307,7 +309,8 @@ def test_analytics_stay_off_in_the_environment_the_module_sets(tmp_path):
         from sim.scenario import available_scenarios, load_scenario
         from sim.semantics import derive_components
         from sim.types import Pose2D
-        from study.data.recording import TrialRecorder, verify
+        from study.data.recording import TrialRecorder
+        from study.data.rrd import verify
         s = load_scenario("demo_docking")
         path = {str(home / "t.rrd")!r}
         with TrialRecorder(path, trial_key="k", scenario=s, components=derive_components(s),

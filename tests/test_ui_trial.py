@@ -258,7 +258,7 @@ def test_no_mode_name_is_ever_drawn(tmp_path, person_factory, protocol):
 
 
 def test_recording_logs_the_camera_image_the_screen_showed(tmp_path, person_factory, rng):
-    from study.data.recording import recording_summary
+    from study.data.rrd import recording_summary
 
     shown: list[np.ndarray] = []
 

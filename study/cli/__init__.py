@@ -7,20 +7,24 @@ To add one, write ``study/cli/<name>.py`` exposing a click command or group
 and add a line to ``COMMANDS``.
 
 Bad input anywhere (a malformed file, an unknown name, an impossible option)
-is raised as ``ValueError``/``TypeError`` (or ``FileNotFoundError``) with the
-file, field and what is allowed; :func:`main` turns it into one line on stderr
-and exit status 2. Set ``ASA_DEBUG=1`` to see the traceback instead.
+is raised as ``ValueError`` (or ``FileNotFoundError``) with the file, field and
+what is allowed; :func:`main` turns it, and click's usage errors, into one line
+on stderr and exit status 2. Any other exception is a bug and keeps its
+traceback. Set ``ASA_DEBUG=1`` to see the traceback of bad input too.
 """
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import os
 import sys
+from collections.abc import Iterator
 
 import click
 
 from study import __version__
+from study._blas import limit_blas_threads
 
 # name -> ("module:attribute", one-line help shown by ``asa --help``)
 COMMANDS: dict[str, tuple[str, str]] = {
@@ -96,30 +100,22 @@ def _one_line(error: BaseException) -> str:
     return " ".join(text.split())
 
 
-def limit_blas_threads() -> None:
-    """One BLAS thread per process unless ``ASA_BLAS_THREADS`` says otherwise.
+@contextlib.contextmanager
+def flag_errors(*parameters: str) -> Iterator[None]:
+    """Name the flag in a library ``ValueError`` that names one of ``parameters``.
 
-    The per-tick linear algebra is small (10 candidates, 500 basis vectors): several
-    BLAS threads only contend with each other and with worker processes, which on a
-    2-core machine made the SOGP and the benchmark 5-8 times slower.
-
-    BLAS reads its thread count when it is loaded, so the limit goes into the
-    environment (``OPENBLAS_NUM_THREADS``, ``MKL_NUM_THREADS``, ``OMP_NUM_THREADS``):
-    it then holds for numpy loaded later in this process and in every worker process
-    it starts. ``threadpoolctl`` only reaches libraries already loaded, so it is used
-    as well when numpy is. Also a worker pool's initializer.
+    The library speaks Python (``"participants: must be ..."``); the command line words
+    the same error with its flag (``"--participants: must be ..."``).
     """
-    threads = os.environ.get("ASA_BLAS_THREADS", "1")
-    if not threads.isdigit() or int(threads) < 1:
-        raise ValueError(
-            f"environment variable ASA_BLAS_THREADS: must be a positive integer, got {threads!r}"
-        )
-    for name in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "OMP_NUM_THREADS"):
-        os.environ[name] = threads
-    if "numpy" in sys.modules:
-        from threadpoolctl import threadpool_limits
-
-        threadpool_limits(int(threads), user_api="blas")
+    try:
+        yield
+    except ValueError as error:
+        text = str(error)
+        for name in parameters:
+            if text.startswith(f"{name}: "):
+                flag = "--" + name.replace("_", "-")
+                raise ValueError(flag + text[len(name) :]) from error
+        raise
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -135,14 +131,8 @@ def main(argv: list[str] | None = None) -> None:
         # Bad options or arguments: click's own message, on one line.
         click.echo(f"asa: {' '.join(error.format_message().split())}", err=True)
         sys.exit(2)
-    except (
-        ValueError,
-        TypeError,
-        FileNotFoundError,
-        IsADirectoryError,
-        NotADirectoryError,
-        PermissionError,
-    ) as error:
+    except (ValueError, FileNotFoundError) as error:
+        # Bad input, named by the library; any other exception is a bug: a traceback.
         if debug:
             raise
         click.echo(f"asa: error: {_one_line(error)}", err=True)

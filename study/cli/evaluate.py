@@ -56,7 +56,7 @@ import click
 
 from autonomy.evaluation import EvaluationSettings, evaluate, format_report, summarise_repeats
 from autonomy.model import DEFAULT_MODEL, load_model
-from study.cli import limit_blas_threads
+from study._blas import limit_blas_threads
 
 RECIPE = {"task": "all", "runs": 12, "seed": 7}  # autonomy/models/README.md
 

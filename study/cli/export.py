@@ -6,6 +6,8 @@ from pathlib import Path
 
 import click
 
+from study.cli import flag_errors
+
 
 @click.command("export")
 @click.option(
@@ -26,6 +28,7 @@ def export_command(path: Path, out: Path) -> None:
     question, response, meta) into --out; JSON columns as JSON text."""
     from study.data.dbtools import export
 
-    written = export(path, out)
+    with flag_errors("out"):
+        written = export(path, out)
     for name, n in written.items():
         click.echo(f"{out / (name + '.csv')}: {n} rows")

@@ -1,28 +1,14 @@
-"""``asa pilot``: the README's main job (issue 6).
-
-The thesis protocol (``thesis-7-6``) with 18 synthetic participants
-(:func:`study.jobs.synth.run_synthetic_study`) into a fresh folder, recordings included; then
-the database check (:func:`study.data.dbtools.check`), the report
-(:func:`analysis.report.build_report`), where everything is, and the sanity summary
-(:func:`study.jobs.synth.sanity_summary`: per mode the completion rate, collisions, score, and
-for the contextual mode how often the recognised task and target match the participant's
-true intention).
-
-Decisions: the folder is ``pilot-<UTC timestamp>/`` in the current folder unless ``--out``
-names one; a folder that exists and is not empty is refused (a pilot never mixes with
-earlier data). Inside it: ``pilot.db``, ``pilot_recordings/``, ``report/``. Progress goes
-to stderr, the summary to stdout. The command exits 1 when the database check finds
-problems (after printing them), like ``asa db check``.
-"""
+"""``asa pilot``: a synthetic pilot study and its report (:func:`study.jobs.pilot.run_pilot`).
+Progress goes to stderr, the summary to stdout; exit status 1 when the database check
+finds problems (after printing them), like ``asa db check``."""
 
 from __future__ import annotations
 
-import datetime as dt
-import os
-import time
 from pathlib import Path
 
 import click
+
+from study.cli import flag_errors
 
 
 @click.command()
@@ -62,47 +48,23 @@ def pilot(
       asa pilot                                  # 18 participants, thesis protocol
       asa pilot --participants 6 --out quick/    # a smaller one
     """
-    from analysis.report import build_report
-    from study.data.dbtools import check
-    from study.engine.protocol import load_protocol
-    from study.jobs.synth import format_summary, run_synthetic_study, sanity_summary
-
-    start = time.perf_counter()
-    p = load_protocol(protocol)
-    if out is None:
-        stamp = dt.datetime.now(dt.UTC).strftime("%Y%m%d-%H%M%S")
-        out = Path(f"pilot-{stamp}")
-    if out.exists() and (not out.is_dir() or any(out.iterdir())):
-        raise ValueError(f"--out: {out} exists and is not an empty folder; choose a new one")
-    w = workers if workers is not None else (os.cpu_count() or 1)
-    out.mkdir(parents=True, exist_ok=True)
-    db = out / "pilot.db"
+    from study.jobs.pilot import pilot_lines, run_pilot
 
     def say(line: str) -> None:
         click.echo(f"asa pilot: {line}", err=True)
 
-    say(f"{participants} synthetic participants of {p.name} with {w} workers into {out}/")
-    summary = run_synthetic_study(
-        p, db, participants=participants, seed=seed, workers=w, progress=say
-    )
-    study_s = summary.wall_s
-    say("checking the database")
-    report = check(db)
-    if not report.clean:
-        click.echo(report.text())
-    say("writing the report")
-    paths = build_report(db, out / "report", progress=say)
-    click.echo(f"pilot folder:  {out.resolve()}")
-    click.echo(f"database:      {db.resolve()}")
-    click.echo(f"recordings:    {(out / 'pilot_recordings').resolve()}")
-    click.echo(f"report:        {paths.html.resolve()}")
-    click.echo(f"database check: {'clean' if report.clean else 'PROBLEMS (above)'}")
-    click.echo(
-        f"time: study {study_s:.0f} s, report {paths.seconds:.0f} s, "
-        f"total {time.perf_counter() - start:.0f} s"
-    )
-    click.echo("sanity summary (main trials, per mode):")
-    for line in format_summary(sanity_summary(db)):
+    with flag_errors("out", "participants", "workers", "seed"):
+        result = run_pilot(
+            out,
+            participants=participants,
+            workers=workers,
+            seed=seed,
+            protocol=protocol,
+            progress=say,
+        )
+    if not result.check.clean:
+        click.echo(result.check.text())
+    for line in pilot_lines(result):
         click.echo(line)
-    if not report.clean:
+    if not result.check.clean:
         raise SystemExit(1)

@@ -1,83 +1,12 @@
-"""``asa replay``: open a trial's rerun recording, or print what it holds.
-
-A thin shell over :func:`find_recording`, :func:`study.data.recording.recording_summary`
-and :func:`study.data.recording.open_viewer`.
-
-Decision where the spec is silent: ``--trial N`` is the trial's row id in the
-database (``trial.id``, the id ``asa export`` writes), because it is unique even
-when a practice trial was repeated or a crashed trial was run again; the trial
-must belong to ``--participant``. An unknown id is answered with the
-participant's trials (id, phase, ordinal, attempt, mode) so the right one is
-easy to pick. A relative ``recording_path`` is taken relative to the
-database's folder.
-"""
+"""``asa replay``: open a trial's rerun recording, or print what it holds
+(:func:`study.data.dbtools.find_recording`, :func:`study.data.rrd.recording_summary`,
+:func:`study.data.rrd.open_viewer`)."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 import click
-from sqlalchemy import select
-from sqlalchemy.orm import Session
-
-from study.data.storage import Participant, Trial, database_url, open_database
-
-
-def find_recording(db: str | Path, participant: str, trial: int) -> Path:
-    """The ``.rrd`` file of trial ``trial`` (row id) of participant ``participant``.
-
-    Raises
-    ------
-    ValueError
-        Naming the database and the field (``participant.code``, ``trial.id``,
-        ``trial.recording_path``) when the participant or trial is unknown, or the
-        trial has no recording or its file is missing.
-    """
-    engine = open_database(db, create=False)
-    try:
-        with Session(engine) as s:
-            person = s.scalars(select(Participant).where(Participant.code == participant)).first()
-            if person is None:
-                codes = s.scalars(select(Participant.code).order_by(Participant.code)).all()
-                known = ", ".join(codes[:20]) + (" ..." if len(codes) > 20 else "")
-                raise ValueError(
-                    f"{db}: field 'participant.code': no participant {participant!r} "
-                    f"(known: {known or 'none'})"
-                )
-            row = s.get(Trial, trial)
-            if row is None or row.participant_id != person.id:
-                trials = s.scalars(
-                    select(Trial).where(Trial.participant_id == person.id).order_by(Trial.id)
-                ).all()
-                listed = "; ".join(
-                    f"{t.id} ({t.phase} {t.ordinal}"
-                    + (f" attempt {t.attempt}" if t.attempt else "")
-                    + (f", {t.mode}" if t.mode else "")
-                    + ")"
-                    for t in trials
-                )
-                raise ValueError(
-                    f"{db}: field 'trial.id': participant {participant} has no trial {trial} "
-                    f"(trial ids: {listed or 'none'})"
-                )
-            stored = row.recording_path
-    finally:
-        engine.dispose()
-    if not stored:
-        raise ValueError(
-            f"{db}: field 'trial.recording_path': trial {trial} of {participant} has no recording"
-        )
-    path = Path(stored)
-    if not path.is_absolute():
-        url = database_url(db)
-        base = Path(url[len("sqlite:///") :]).parent if url.startswith("sqlite:///") else Path()
-        path = base / path
-    if not path.is_file():
-        raise ValueError(
-            f"{db}: field 'trial.recording_path': the recording of trial {trial} of "
-            f"{participant} is missing ({path})"
-        )
-    return path
 
 
 @click.command()
@@ -108,7 +37,8 @@ def replay(db: Path, participant: str, trial: int, print_only: bool) -> None:
     Example: asa replay --db study.db --participant P01 --trial 7 --print
     """
     # imported here so that `asa replay --help` does not load rerun
-    from study.data.recording import format_summary, open_viewer, recording_summary
+    from study.data.dbtools import find_recording
+    from study.data.rrd import format_summary, open_viewer, recording_summary
 
     path = find_recording(db, participant, trial)
     if print_only:

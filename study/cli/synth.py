@@ -11,6 +11,8 @@ from pathlib import Path
 
 import click
 
+from study.cli import flag_errors
+
 
 @click.command("synth")
 @click.option("--protocol", required=True, help="Shipped protocol name or TOML file.")
@@ -59,15 +61,16 @@ def synth(
     p = load_protocol(protocol)
     n = participants if participants is not None else p.study.participants
     w = workers if workers is not None else (os.cpu_count() or 1)
-    summary = run_synthetic_study(
-        p,
-        db,
-        participants=n,
-        seed=seed,
-        workers=w,
-        recordings=recordings,
-        progress=lambda line: click.echo(line, err=True),
-    )
+    with flag_errors("participants", "seed", "workers", "db"):
+        summary = run_synthetic_study(
+            p,
+            db,
+            participants=n,
+            seed=seed,
+            workers=w,
+            recordings=recordings,
+            progress=lambda line: click.echo(line, err=True),
+        )
     click.echo(
         f"{summary.db}: {len(summary.run)} participants run, {len(summary.skipped)} skipped, "
         f"in {summary.wall_s:.1f} s"

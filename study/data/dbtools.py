@@ -1,27 +1,13 @@
-"""Checking and exporting a study database: ``asa db check`` and ``asa export``.
+"""Checking and exporting a study database (``asa db check``, ``asa export``), and finding
+a trial's recording (``asa replay``).
 
-:func:`check` looks for what the session engine promises (DESIGN.md, "Data"; issue 4):
-
-- every completed trial has its samples, one per tick at 20 Hz with contiguous tick
-  numbers and as many as its duration asks (``duration * 20``, within two ticks), its
-  ``trial_started`` and ``trial_ended`` events, its outcome fields (driving trials), and,
-  for a main trial of a completed session whose protocol asks for a questionnaire after
-  each trial, its NASA-TLX ratings (and the 15 pairwise choices when weights are asked);
-- no orphans: samples, events, questions and responses whose trial, session or
-  participant does not exist, trials without their participant or session;
-- no trial left ``running`` outside a ``running`` session;
-- the recording of every completed trial exists beside the database and passes
-  ``rerun rrd verify`` (:func:`study.data.recording.verify`; ``verify_recordings=False`` skips
-  the verification but still checks that the file exists).
-
-Decisions where the spec is silent: the sample count is checked against the largest
-sample time (``t_max * 20``) rather than the wall-clock start and end (a paused trial
-stops simulated time); a trial's duration tolerance is two ticks. The protocol is read
-back from ``study.protocol_text`` to know whether questionnaires are expected; a text
-that no longer validates (e.g. a mode no longer registered) only skips that check.
-
-:func:`export` writes one CSV per table (``<table>.csv``), columns in the table's order,
-JSON columns as JSON text, times in ISO 8601, NULL as an empty field.
+:func:`check` looks for what the session engine promises (DESIGN.md "Data"; issue 4):
+every completed trial has its samples (one per tick at 20 Hz, contiguous, as many as its
+duration asks, within two ticks), its start and end events, its outcome fields, its
+NASA-TLX answers where the protocol asks for them, and its recording, which passes
+``rerun rrd verify`` (:func:`study.data.rrd.verify_many`); no orphan rows; no trial left
+``running`` outside a ``running`` session. :func:`export` writes one CSV per table:
+columns in the table's order, JSON columns as JSON text, times in ISO 8601, NULL empty.
 """
 
 from __future__ import annotations
@@ -38,7 +24,7 @@ from sqlalchemy import JSON, func, select
 from sqlalchemy.orm import Session
 
 from questionnaires import nasa_tlx
-from study.data.recording import verify_many
+from study.data.rrd import verify_many
 from study.data.storage import (
     Base,
     Event,
@@ -49,6 +35,7 @@ from study.data.storage import (
     SessionRow,
     Trial,
     database_file,
+    database_url,
     get_study,
     open_database,
 )
@@ -146,30 +133,12 @@ def check(db: str | Path, *, verify_recordings: bool = True) -> CheckReport:
             after = _after_trial(study.protocol_text)
             _orphans(s, problems)
             sessions = {r.id: r for r in s.scalars(select(SessionRow))}
-            stats = {
-                tid: (n, lo, hi, tmax)
-                for tid, n, lo, hi, tmax in s.execute(
-                    select(
-                        Sample.trial_id,
-                        func.count(),
-                        func.min(Sample.tick),
-                        func.max(Sample.tick),
-                        func.max(Sample.t),
-                    ).group_by(Sample.trial_id)
-                )
-            }
+            stats = _sample_stats(s)
             kinds: dict[int, set[str]] = {}
             for tid, kind in s.execute(
                 select(Event.trial_id, Event.kind).where(Event.trial_id.is_not(None)).distinct()
             ):
                 kinds.setdefault(tid, set()).add(kind)
-            tlx: dict[int, set[str]] = {}
-            for tid, item in s.execute(
-                select(Response.trial_id, Response.item).where(
-                    Response.instrument == nasa_tlx.INSTRUMENT_ID, Response.trial_id.is_not(None)
-                )
-            ):
-                tlx.setdefault(tid, set()).add(item)
             main_trials: dict[int, list[Trial]] = {}
             checked = 0
             for trial in s.scalars(select(Trial).order_by(Trial.id)):
@@ -186,59 +155,11 @@ def check(db: str | Path, *, verify_recordings: bool = True) -> CheckReport:
                 checked += 1
                 if trial.phase == "main":
                     main_trials.setdefault(trial.session_id, []).append(trial)
-                n, lo, hi, tmax = stats.get(trial.id, (0, None, None, None))
-                if n == 0:
-                    problems.append(f"{where}: completed but has no samples")
-                else:
-                    if hi - lo + 1 != n:
-                        problems.append(
-                            f"{where}: sample ticks {lo}..{hi} are not contiguous ({n})"
-                        )
-                    expected = round(tmax / DT)
-                    if abs(n - expected) > TICK_TOLERANCE:
-                        problems.append(
-                            f"{where}: {n} samples for {tmax:.2f} s (expected ~{expected} at 20 Hz)"
-                        )
-                    if trial.completion_time_s is not None and trial.phase != "baseline":
-                        if n < round(trial.completion_time_s / DT) - TICK_TOLERANCE:
-                            problems.append(
-                                f"{where}: {n} samples for a completion time of "
-                                f"{trial.completion_time_s:.2f} s"
-                            )
-                missing_events = {"trial_started", "trial_ended"} - kinds.get(trial.id, set())
-                if missing_events:
-                    problems.append(f"{where}: missing events {', '.join(sorted(missing_events))}")
-                if trial.ended_at is None:
-                    problems.append(f"{where}: completed without ended_at")
-                if trial.phase != "baseline" and (
-                    trial.completed_task is None
-                    or trial.completion_time_s is None
-                    or trial.collisions is None
-                    or trial.score is None
-                ):
-                    problems.append(f"{where}: completed without its outcome fields")
+                _check_samples(trial, stats.get(trial.id, (0, None, None, None)), where, problems)
+                _check_completed(trial, kinds.get(trial.id, set()), where, problems)
                 _check_recording(trial, folder, verify_recordings, problems, where, to_verify)
-            # questionnaires after main trials of completed sessions
             if after is not None and after[0]:
-                for session_id, trials in main_trials.items():
-                    session = sessions.get(session_id)
-                    if session is None or session.status != "completed":
-                        continue
-                    last = max(t.ordinal for t in trials)
-                    for trial in trials:
-                        items = tlx.get(trial.id, set())
-                        where = f"trial {trial.id} (main #{trial.ordinal})"
-                        if not set(nasa_tlx.SUBSCALE_IDS) <= items:
-                            problems.append(f"{where}: NASA-TLX ratings missing")
-                        pairs = {i for i in items if i.startswith("pair:")}
-                        want_pairs = after[1] == "per_trial" or (
-                            after[1] == "once" and trial.ordinal == last
-                        )
-                        if want_pairs and len(pairs) != nasa_tlx.N_PAIRS:
-                            problems.append(
-                                f"{where}: {len(pairs)} NASA-TLX pairwise choices, expected "
-                                f"{nasa_tlx.N_PAIRS}"
-                            )
+                _check_questionnaires(s, main_trials, sessions, after[1], problems)
             counts["trials_checked"] = checked
     finally:
         engine.dispose()
@@ -248,6 +169,90 @@ def check(db: str | Path, *, verify_recordings: bool = True) -> CheckReport:
             if path in failures:
                 problems.append(f"{where}: {failures[path]}")
     return CheckReport(str(db), tuple(problems), counts)
+
+
+def _sample_stats(s: Session) -> dict[int, tuple[int, int, int, float]]:
+    """Trial id -> (samples, first tick, last tick, last sample time [s])."""
+    return {
+        tid: (n, lo, hi, tmax)
+        for tid, n, lo, hi, tmax in s.execute(
+            select(
+                Sample.trial_id,
+                func.count(),
+                func.min(Sample.tick),
+                func.max(Sample.tick),
+                func.max(Sample.t),
+            ).group_by(Sample.trial_id)
+        )
+    }
+
+
+def _check_samples(trial: Trial, stats: tuple[Any, ...], where: str, problems: list[str]) -> None:
+    """One sample per tick at 20 Hz, contiguous, as many as the trial's duration asks."""
+    n, lo, hi, tmax = stats
+    if n == 0:
+        problems.append(f"{where}: completed but has no samples")
+        return
+    if hi - lo + 1 != n:
+        problems.append(f"{where}: sample ticks {lo}..{hi} are not contiguous ({n})")
+    expected = round(tmax / DT)
+    if abs(n - expected) > TICK_TOLERANCE:
+        problems.append(f"{where}: {n} samples for {tmax:.2f} s (expected ~{expected} at 20 Hz)")
+    if trial.completion_time_s is not None and trial.phase != "baseline":
+        if n < round(trial.completion_time_s / DT) - TICK_TOLERANCE:
+            problems.append(
+                f"{where}: {n} samples for a completion time of {trial.completion_time_s:.2f} s"
+            )
+
+
+def _check_completed(trial: Trial, kinds: set[str], where: str, problems: list[str]) -> None:
+    """A completed trial's start and end events, ``ended_at`` and outcome fields."""
+    missing_events = {"trial_started", "trial_ended"} - kinds
+    if missing_events:
+        problems.append(f"{where}: missing events {', '.join(sorted(missing_events))}")
+    if trial.ended_at is None:
+        problems.append(f"{where}: completed without ended_at")
+    if trial.phase != "baseline" and (
+        trial.completed_task is None
+        or trial.completion_time_s is None
+        or trial.collisions is None
+        or trial.score is None
+    ):
+        problems.append(f"{where}: completed without its outcome fields")
+
+
+def _check_questionnaires(
+    s: Session,
+    main_trials: dict[int, list[Trial]],
+    sessions: dict[int, SessionRow],
+    weights: str,
+    problems: list[str],
+) -> None:
+    """NASA-TLX ratings (and pairwise choices as ``weights`` asks) after every main trial
+    of a completed session."""
+    tlx: dict[int, set[str]] = {}
+    for tid, item in s.execute(
+        select(Response.trial_id, Response.item).where(
+            Response.instrument == nasa_tlx.INSTRUMENT_ID, Response.trial_id.is_not(None)
+        )
+    ):
+        tlx.setdefault(tid, set()).add(item)
+    for session_id, trials in main_trials.items():
+        session = sessions.get(session_id)
+        if session is None or session.status != "completed":
+            continue
+        last = max(t.ordinal for t in trials)
+        for trial in trials:
+            items = tlx.get(trial.id, set())
+            where = f"trial {trial.id} (main #{trial.ordinal})"
+            if not set(nasa_tlx.SUBSCALE_IDS) <= items:
+                problems.append(f"{where}: NASA-TLX ratings missing")
+            pairs = {i for i in items if i.startswith("pair:")}
+            want_pairs = weights == "per_trial" or (weights == "once" and trial.ordinal == last)
+            if want_pairs and len(pairs) != nasa_tlx.N_PAIRS:
+                problems.append(
+                    f"{where}: {len(pairs)} NASA-TLX pairwise choices, expected {nasa_tlx.N_PAIRS}"
+                )
 
 
 def _check_recording(
@@ -268,6 +273,66 @@ def _check_recording(
         return
     if verify_recordings:
         to_verify.append((path, where))
+
+
+# ------------------------------------------------------------------------- replay
+
+
+def find_recording(db: str | Path, participant: str, trial: int) -> Path:
+    """The ``.rrd`` file of trial ``trial`` (row id) of participant ``participant``.
+
+    Raises
+    ------
+    ValueError
+        Naming the database and the field (``participant.code``, ``trial.id``,
+        ``trial.recording_path``) when the participant or trial is unknown, or the
+        trial has no recording or its file is missing.
+    """
+    engine = open_database(db, create=False)
+    try:
+        with Session(engine) as s:
+            person = s.scalars(select(Participant).where(Participant.code == participant)).first()
+            if person is None:
+                codes = s.scalars(select(Participant.code).order_by(Participant.code)).all()
+                known = ", ".join(codes[:20]) + (" ..." if len(codes) > 20 else "")
+                raise ValueError(
+                    f"{db}: field 'participant.code': no participant {participant!r} "
+                    f"(known: {known or 'none'})"
+                )
+            row = s.get(Trial, trial)
+            if row is None or row.participant_id != person.id:
+                trials = s.scalars(
+                    select(Trial).where(Trial.participant_id == person.id).order_by(Trial.id)
+                ).all()
+                listed = "; ".join(
+                    f"{t.id} ({t.phase} {t.ordinal}"
+                    + (f" attempt {t.attempt}" if t.attempt else "")
+                    + (f", {t.mode}" if t.mode else "")
+                    + ")"
+                    for t in trials
+                )
+                raise ValueError(
+                    f"{db}: field 'trial.id': participant {participant} has no trial {trial} "
+                    f"(trial ids: {listed or 'none'})"
+                )
+            stored = row.recording_path
+    finally:
+        engine.dispose()
+    if not stored:
+        raise ValueError(
+            f"{db}: field 'trial.recording_path': trial {trial} of {participant} has no recording"
+        )
+    path = Path(stored)
+    if not path.is_absolute():
+        url = database_url(db)
+        base = Path(url[len("sqlite:///") :]).parent if url.startswith("sqlite:///") else Path()
+        path = base / path
+    if not path.is_file():
+        raise ValueError(
+            f"{db}: field 'trial.recording_path': the recording of trial {trial} of "
+            f"{participant} is missing ({path})"
+        )
+    return path
 
 
 # ------------------------------------------------------------------------- export
@@ -298,7 +363,7 @@ def export(db: str | Path, out: str | Path) -> dict[str, int]:
     engine = open_database(db, create=False)
     folder = Path(out)
     if folder.exists() and not folder.is_dir():
-        raise ValueError(f"{out}: --out must be a folder, and this is a file")
+        raise ValueError(f"out: {out} must be a folder, and this is a file")
     folder.mkdir(parents=True, exist_ok=True)
     written: dict[str, int] = {}
     try:

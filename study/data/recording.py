@@ -1,87 +1,29 @@
 """Rerun recordings of trials: one ``.rrd`` per trial on a ``sim_time`` timeline.
 
-DESIGN.md ("Data", the rerun paragraph) and issue 4 ("Storage and recording"):
-the static map and semantic components, the robot pose and footprint, laser
-hits, ``u`` and ``v`` as arrows, ``beta`` and the recognition scores as time
-series, the predicted trajectory, the recognised target highlighted, camera
-frames at a lower rate, secondary-task questions and events as text. Every
-recording must pass ``rerun rrd verify``; ``asa replay`` opens or summarises it.
-
-Following STYLE.md, each trial gets its own ``rr.RecordingStream`` (never the
-global one), its entity paths are the constants of :data:`ENTITY`, and the
-modes only *return* their diagnostics (``autonomy.types.Assist``); the
-session engine hands them to :meth:`TrialRecorder.tick`.
-
-Decisions where the spec is silent
-----------------------------------
-- **Analytics.** rerun 0.41 has no opt-out environment variable of its own: its
-  analytics pipeline is switched off by the user-wide config file written by
-  ``rerun analytics disable`` or by the ``CI`` environment variable
-  (``re_analytics``: "Analytics disabled on CI"). Only the rerun *executables*
-  (viewer, ``rerun rrd verify``) start that pipeline; the Python SDK streaming to
-  a file does not (checked: with a fresh ``XDG_CONFIG_HOME``/``XDG_DATA_HOME``
-  no analytics file appears after recording, whereas ``rerun rrd verify`` creates
-  them unless ``CI`` is set). Setting ``CI`` in this process would also switch
-  pytest and Hypothesis into their CI behaviour, so the platform sets it only in
-  the environment of every rerun child process it starts
-  (:func:`rerun_environment`, :data:`ANALYTICS_OFF_ENV`), and never calls
-  ``rr.spawn``/``serve_*`` in-process. The user's own rerun config is left alone.
-- **Frames.** Laser hits are given in the robot frame (``Observation.points``)
-  and logged under ``world/robot/laser``, a child of the robot's pose
-  transform, so the recorder does no per-point arithmetic. The predicted path
-  (robot frame, ``Assist.predicted_path``) is moved to the map frame for
-  ``world/predicted_path``. The 2-D view of rerun draws +y downwards; a static
-  ``world`` transform ``scale = (1, -1)`` makes the map appear as in the thesis
-  figures (y up) while every logged coordinate stays in the map frame.
-- **Rates and batching.** Per-tick values (pose, ``u``, ``v``, ``beta``,
-  scores, predicted path, laser) are buffered and sent with ``send_columns``
-  once per ``flush_every_s`` simulated seconds. The default is 5 s, not 1 s:
-  each ``send_columns`` has a fixed cost of ~0.1-0.3 ms, so a 1 s batch costs
-  ~115 us per tick against ~55 us for 5 s (measured, 540 laser points, three
-  scores); the database, not the recording, is the crash-safe record (an
-  ``.rrd`` cut by a crash lacks its footer anyway, and a resumed trial is run
-  again). Laser hits are kept at ``laser_hz`` (default 5 Hz: 540 points at
-  20 Hz would make a 3-minute trial ~15 MB); the predicted path at ``path_hz``
-  (default 10 Hz), sent in one ``send_columns``, as a ``(rows, k, 2)`` array
-  when all paths have ``k`` points (fastest to convert), else as the list of
-  paths (one send per path length, as before, cost ~10 ms per 5 s batch with the
-  contextual mode's paths of many lengths, ~0.1 ms per tick); camera frames are logged
-  whenever the caller passes one (the caller decides the rate, e.g. 2 Hz) and
-  JPEG-compressed. The target highlight is buffered too, one row per change of
-  (target, label), "no target" as an empty row (nothing highlighted); text is
-  logged as it happens.
-  The wall-clock ``log_time`` timeline is disabled so a recording is a pure
-  function of the simulated trial.
-- **Arrows.** ``u`` and ``v`` are drawn from the robot's centre with length
-  ``arrow_scale_s * (v_x, v_y)`` [m] in the robot frame; ``omega`` is not drawn.
-- **Identity.** The recording id is a UUID5 of ``trial_key`` (deterministic, so
-  a re-recorded trial replaces rather than duplicates in the viewer); the
-  recording name is ``trial_key``.
+The static map and semantic components, the robot pose and footprint, laser hits, ``u``
+and ``v`` as arrows, ``beta`` and the recognition scores as time series, the predicted
+trajectory, the recognised target, camera frames and the secondary task's questions and
+events as text (DESIGN.md "Data"; issue 4). Each trial has its own
+``rr.RecordingStream``; entity paths are the constants of :data:`ENTITY`; modes return
+their diagnostics and the session engine hands them to :meth:`TrialRecorder.tick`.
+Reading back, verifying and viewing: :mod:`study.data.rrd`.
 """
 
 from __future__ import annotations
 
 import math
-import os
-import re
-import shutil
-import subprocess
 import uuid
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import rerun as rr
-from rerun.chunk import RrdReader
 
 from sim.occupancy import OccupancyGrid
 from sim.scenario import Box, Scenario
 from sim.types import COMPONENT_KINDS, SemanticComponent
-
-# rerun's analytics are off in every rerun process the platform starts (module docstring).
-ANALYTICS_OFF_ENV: dict[str, str] = {"CI": "1"}
 
 TIMELINE = "sim_time"  # duration timeline [s] of simulated trial time
 RECORDING_NAMESPACE = uuid.UUID("5d1b7c0e-6f3a-4c1e-9a57-8a9d2f0e4b21")  # recording ids
@@ -159,27 +101,6 @@ class RecorderSettings:
 def recording_id(trial_key: str) -> uuid.UUID:
     """Deterministic recording id of a trial: UUID5 of ``trial_key``."""
     return uuid.uuid5(RECORDING_NAMESPACE, trial_key)
-
-
-def rerun_environment() -> dict[str, str]:
-    """``os.environ`` plus :data:`ANALYTICS_OFF_ENV`: the environment of every rerun process."""
-    return {**os.environ, **ANALYTICS_OFF_ENV}
-
-
-def rerun_executable() -> str:
-    """Path of the ``rerun`` executable shipped with rerun-sdk.
-
-    The binary itself, not ``python -m rerun_cli`` (that wrapper drops the exit status).
-    """
-    import rerun_cli
-
-    bundled = Path(rerun_cli.__file__).with_name("rerun.exe" if os.name == "nt" else "rerun")
-    if bundled.is_file():
-        return str(bundled)
-    found = shutil.which("rerun")
-    if found is None:
-        raise FileNotFoundError(2, "the rerun executable (rerun-sdk) was not found", "rerun")
-    return found
 
 
 # ------------------------------------------------------------------------ the recorder
@@ -276,69 +197,15 @@ class TrialRecorder:
     def _log_static(
         self, scenario: Scenario, components: Sequence[SemanticComponent], grid: OccupancyGrid
     ) -> None:
-        rec = self._rec
-        rec.log(ENTITY.world, rr.Transform3D(scale=[1.0, -1.0, 1.0]), static=True)
-        # occupancy image: pixel (u, v) -> map (x0 + u res, y_max - v res); row 0 = top
-        image = np.where(grid.occupied, 60, 235).astype(np.uint8)[::-1]
-        x0, _, _, y_max = grid.extent()
-        rec.log(
-            ENTITY.map,
-            rr.Transform3D(
-                translation=[x0, y_max, 0.0], scale=[grid.resolution, -grid.resolution, 1.0]
-            ),
-            rr.Image(image, color_model="L", draw_order=-10.0),
-            static=True,
-        )
-        strips, names = [], []
-        for box in scenario.walls + scenario.boxes:
-            strips.append(_closed(box.corners()))
-            names.append(box.name)
-        for cyl in scenario.cylinders:
-            strips.append(_circle(cyl.centre, cyl.radius))
-            names.append(cyl.name)
-        for table in scenario.tables:
-            top = Box(table.name, "obstacle", table.centre, table.size, table.yaw, 0, table.colour)
-            strips.append(_closed(top.corners()))
-            names.append(table.name)
-            for leg in table.leg_boxes():
-                strips.append(_closed(leg.corners()))
-                names.append(leg.name)
-        if strips:
-            rec.log(
-                ENTITY.obstacles,
-                rr.LineStrips2D(
-                    strips, labels=names, colors=COLOURS["obstacle"], show_labels=False
-                ),
-                static=True,
-            )
+        self._rec.log(ENTITY.world, rr.Transform3D(scale=[1.0, -1.0, 1.0]), static=True)
+        self._log_map(grid)
+        self._log_obstacles(scenario)
         for kind in COMPONENT_KINDS:
             of_kind = [c for c in components if c.kind == kind]
-            if not of_kind:
-                continue
-            pts = [_component_points(c) for c in of_kind]
-            labels = [c.id for c, p in zip(of_kind, pts, strict=True) for _ in range(len(p))]
-            archetypes: list[Any] = [
-                rr.Points2D(
-                    np.vstack(pts),
-                    labels=labels,
-                    colors=COLOURS[kind],
-                    radii=0.04,
-                    show_labels=False,
-                )
-            ]
-            passages = [c for c in of_kind if len(c.ends) == 2]
-            if passages:
-                archetypes.append(
-                    rr.LineStrips2D(
-                        [np.asarray(c.ends, dtype=float) for c in passages],
-                        labels=[c.id for c in passages],
-                        colors=COLOURS[kind],
-                        radii=0.03,
-                    )
-                )
-            rec.log(ENTITY.component(kind), *archetypes, static=True)
+            if of_kind:
+                self._log_components(kind, of_kind)
         if len(scenario.question_region):
-            rec.log(
+            self._rec.log(
                 ENTITY.question_region,
                 rr.LineStrips2D(
                     [_closed(scenario.question_region)],
@@ -355,12 +222,73 @@ class TrialRecorder:
             (ENTITY.predicted_path, rr.LineStrips2D.from_fields(colors=COLOURS["path"])),
             (ENTITY.target, rr.Points2D.from_fields(colors=COLOURS["target"], radii=0.08)),
         ):
-            rec.log(entity, style, static=True)
-        rec.log(
+            self._rec.log(entity, style, static=True)
+        self._rec.log(
             ENTITY.footprint,
             rr.LineStrips2D([_closed(scenario.robot.footprint())], colors=COLOURS["robot"]),
             static=True,
         )
+
+    def _log_map(self, grid: OccupancyGrid) -> None:
+        # occupancy image: pixel (u, v) -> map (x0 + u res, y_max - v res); row 0 = top
+        image = np.where(grid.occupied, 60, 235).astype(np.uint8)[::-1]
+        x0, _, _, y_max = grid.extent()
+        self._rec.log(
+            ENTITY.map,
+            rr.Transform3D(
+                translation=[x0, y_max, 0.0], scale=[grid.resolution, -grid.resolution, 1.0]
+            ),
+            rr.Image(image, color_model="L", draw_order=-10.0),
+            static=True,
+        )
+
+    def _log_obstacles(self, scenario: Scenario) -> None:
+        strips, names = [], []
+        for box in scenario.walls + scenario.boxes:
+            strips.append(_closed(box.corners()))
+            names.append(box.name)
+        for cyl in scenario.cylinders:
+            strips.append(_circle(cyl.centre, cyl.radius))
+            names.append(cyl.name)
+        for table in scenario.tables:
+            top = Box(table.name, "obstacle", table.centre, table.size, table.yaw, 0, table.colour)
+            strips.append(_closed(top.corners()))
+            names.append(table.name)
+            for leg in table.leg_boxes():
+                strips.append(_closed(leg.corners()))
+                names.append(leg.name)
+        if strips:
+            self._rec.log(
+                ENTITY.obstacles,
+                rr.LineStrips2D(
+                    strips, labels=names, colors=COLOURS["obstacle"], show_labels=False
+                ),
+                static=True,
+            )
+
+    def _log_components(self, kind: str, of_kind: list[SemanticComponent]) -> None:
+        pts = [_component_points(c) for c in of_kind]
+        labels = [c.id for c, p in zip(of_kind, pts, strict=True) for _ in range(len(p))]
+        archetypes: list[Any] = [
+            rr.Points2D(
+                np.vstack(pts),
+                labels=labels,
+                colors=COLOURS[kind],
+                radii=0.04,
+                show_labels=False,
+            )
+        ]
+        passages = [c for c in of_kind if len(c.ends) == 2]
+        if passages:
+            archetypes.append(
+                rr.LineStrips2D(
+                    [np.asarray(c.ends, dtype=float) for c in passages],
+                    labels=[c.id for c in passages],
+                    colors=COLOURS[kind],
+                    radii=0.03,
+                )
+            )
+        self._rec.log(ENTITY.component(kind), *archetypes, static=True)
 
     # -------------------------------------------------------------- per tick
 
@@ -474,31 +402,34 @@ class TrialRecorder:
         self._rec.set_time(TIMELINE, duration=t)
         self._rec.log(ENTITY.camera, image)
 
+    def _flush_motion(self) -> None:
+        """Send the buffered robot poses and the ``u`` and ``v`` arrows."""
+        rec = self._rec
+        times = [rr.TimeColumn(TIMELINE, duration=np.asarray(self._t))]
+        pose = np.asarray(self._pose)
+        n = len(pose)
+        half = pose[:, 2] / 2
+        rec.send_columns(
+            ENTITY.robot,
+            indexes=times,
+            columns=rr.Transform3D.columns(
+                translation=np.column_stack((pose[:, :2], np.zeros(n))),
+                quaternion=np.column_stack((np.zeros(n), np.zeros(n), np.sin(half), np.cos(half))),
+            ),
+        )
+        scale = self.settings.arrow_scale_s
+        for entity, values in ((ENTITY.u, self._u), (ENTITY.v, self._v)):
+            rec.send_columns(
+                entity,
+                indexes=times,
+                # origins default to the robot's centre
+                columns=rr.Arrows2D.columns(vectors=scale * np.asarray(values)),
+            )
+
     def _flush_buffers(self) -> None:
         rec = self._rec
         if self._t:
-            times = [rr.TimeColumn(TIMELINE, duration=np.asarray(self._t))]
-            pose = np.asarray(self._pose)
-            n = len(pose)
-            half = pose[:, 2] / 2
-            rec.send_columns(
-                ENTITY.robot,
-                indexes=times,
-                columns=rr.Transform3D.columns(
-                    translation=np.column_stack((pose[:, :2], np.zeros(n))),
-                    quaternion=np.column_stack(
-                        (np.zeros(n), np.zeros(n), np.sin(half), np.cos(half))
-                    ),
-                ),
-            )
-            scale = self.settings.arrow_scale_s
-            for entity, values in ((ENTITY.u, self._u), (ENTITY.v, self._v)):
-                rec.send_columns(
-                    entity,
-                    indexes=times,
-                    # origins default to the robot's centre
-                    columns=rr.Arrows2D.columns(vectors=scale * np.asarray(values)),
-                )
+            self._flush_motion()
         if self._beta:
             rec.send_columns(
                 ENTITY.beta,
@@ -513,7 +444,7 @@ class TrialRecorder:
             )
         if self._path:
             # one send: a (rows, k, 2) array when every path has k points (the fastest to
-            # convert), else the list (one send per length cost ~10x more at 5 s batches)
+            # convert), else the list (cheaper than one send per length; docs/results.md)
             same = len({len(p) for p in self._path}) == 1
             rec.send_columns(
                 ENTITY.predicted_path,
@@ -575,189 +506,12 @@ class TrialRecorder:
         self.close()
 
 
-# ------------------------------------------------------------------------ reading back
-
-
-def _duration_ns(column: Any) -> np.ndarray:
-    import pyarrow as pa
-
-    return np.asarray(column.cast(pa.int64()).to_numpy(zero_copy_only=False), dtype=np.int64)
-
-
-def recording_summary(path: str | Path) -> dict[str, Any]:
-    """What an ``.rrd`` file holds, read back with the rerun SDK.
-
-    Parameters
-    ----------
-    path : str or Path
-        The recording.
-
-    Returns
-    -------
-    dict
-        ``path``; ``application_id`` and ``recording_id``; ``entities``: entity
-        path (without the leading ``/``) -> ``{"rows": temporal rows, "static":
-        static rows}``, sorted by path, rerun's own ``__`` entities left out;
-        ``timeline``: ``"sim_time"``; ``time_range_s``: ``[first, last]`` [s] over
-        all temporal rows, or ``None`` if there are none.
-
-    Raises
-    ------
-    ValueError
-        When the file is not a readable rerun recording (names the file).
-    """
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(2, "No such file", str(path))
-    try:
-        reader = RrdReader(path)
-        stores = reader.recordings()
-        chunks = reader.stream().to_chunks() if stores else []
-    except (RuntimeError, OSError, ValueError) as error:
-        raise ValueError(f"{path}: not a readable rerun recording ({error})") from None
-    if not stores:
-        raise ValueError(f"{path}: holds no rerun recording")
-    entities: dict[str, dict[str, int]] = {}
-    lo, hi = None, None
-    for chunk in chunks:
-        name = chunk.entity_path.lstrip("/")
-        if name.startswith("__") or chunk.is_empty:
-            continue
-        counts = entities.setdefault(name, {"rows": 0, "static": 0})
-        if chunk.is_static:
-            counts["static"] += chunk.num_rows
-            continue
-        counts["rows"] += chunk.num_rows
-        if TIMELINE in chunk.timeline_names:
-            ns = _duration_ns(chunk.to_record_batch().column(TIMELINE))
-            lo = int(ns.min()) if lo is None else min(lo, int(ns.min()))
-            hi = int(ns.max()) if hi is None else max(hi, int(ns.max()))
-    return {
-        "path": str(path),
-        "application_id": stores[0].application_id,
-        "recording_id": stores[0].recording_id,
-        "entities": dict(sorted(entities.items())),
-        "timeline": TIMELINE,
-        "time_range_s": None if lo is None else [lo / 1e9, hi / 1e9],
-    }
-
-
-def format_summary(summary: Mapping[str, Any]) -> str:
-    """:func:`recording_summary` as readable lines (``asa replay --print``)."""
-    lines = [
-        f"recording {summary['path']}",
-        f"  application {summary['application_id']}, recording id {summary['recording_id']}",
-    ]
-    span = summary["time_range_s"]
-    if span is None:
-        lines.append(f"  timeline {summary['timeline']}: no temporal data")
-    else:
-        lines.append(f"  timeline {summary['timeline']}: {span[0]:.3f} s .. {span[1]:.3f} s")
-    width = max((len(name) for name in summary["entities"]), default=10)
-    lines.append(f"  {'entity'.ljust(width)}  {'rows':>7}  {'static':>6}")
-    for name, counts in summary["entities"].items():
-        lines.append(f"  {name.ljust(width)}  {counts['rows']:>7}  {counts['static']:>6}")
-    return "\n".join(lines)
-
-
-def verify(path: str | Path, *, timeout_s: float = 120.0) -> None:
-    """Check a recording with ``rerun rrd verify`` (footers included).
-
-    ``rerun rrd verify`` reports success for a file that is no recording at all
-    ("0 files verified"), so the file must also open with the SDK's reader and
-    hold a recording.
-
-    Raises
-    ------
-    ValueError
-        Naming the file, with rerun's message, when verification fails.
-    """
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(2, "No such file", str(path))
-    try:
-        done = subprocess.run(
-            [rerun_executable(), "rrd", "verify", "--check-footers", "true", str(path)],
-            capture_output=True,
-            text=True,
-            env=rerun_environment(),
-            timeout=timeout_s,
-            check=False,
-        )
-    except subprocess.TimeoutExpired:
-        raise ValueError(f"{path}: rerun rrd verify took longer than {timeout_s} s") from None
-    if done.returncode != 0:
-        message = " ".join((done.stderr or done.stdout).split()) or f"exit {done.returncode}"
-        raise ValueError(f"{path}: rerun rrd verify failed: {message}")
-    recording_summary(path)  # raises ValueError if it is no recording
-
-
-def verify_many(paths: list[Path], *, timeout_s: float = 600.0) -> dict[Path, str]:
-    """Check many recordings with one ``rerun rrd verify`` (a process start per file costs
-    about 0.1 s); returns path -> error message for the files that fail (empty: all good).
-
-    Only when the batch fails, or verifies fewer files than it was given (a file that is no
-    recording at all is skipped silently by rerun), is every file checked by :func:`verify`
-    on its own to name the culprits.
-    """
-    paths = [Path(p) for p in paths]
-    missing = {p: "No such file" for p in paths if not p.is_file()}
-    present = [p for p in paths if p not in missing]
-    if not present:
-        return missing
-    try:
-        done = subprocess.run(
-            [rerun_executable(), "rrd", "verify", "--check-footers", "true", *map(str, present)],
-            capture_output=True,
-            text=True,
-            env=rerun_environment(),
-            timeout=timeout_s,
-            check=False,
-        )
-        text = f"{done.stdout}\n{done.stderr}"
-        counted = re.search(r"(\d+) files? verified without error", text)
-        ok = done.returncode == 0 and counted is not None and int(counted[1]) == len(present)
-    except subprocess.TimeoutExpired:
-        ok = False
-    if ok:
-        return missing
-    failures = dict(missing)
-    for path in present:
-        try:
-            verify(path)
-        except (ValueError, FileNotFoundError) as error:
-            failures[path] = " ".join(str(error).split())
-    return failures
-
-
-def viewer_command(path: str | Path) -> list[str]:
-    """The command that opens the rerun viewer on ``path`` (run it with
-    :func:`rerun_environment`)."""
-    return [rerun_executable(), str(path)]
-
-
-def open_viewer(path: str | Path) -> subprocess.Popen[bytes]:
-    """Start the rerun viewer on ``path`` in its own process (does not wait for it)."""
-    return subprocess.Popen(
-        viewer_command(path),
-        env=rerun_environment(),
-        stdin=subprocess.DEVNULL,
-        start_new_session=True,
-    )
-
-
 __all__ = [
-    "ANALYTICS_OFF_ENV",
+    "COLOURS",
     "ENTITY",
+    "RECORDING_NAMESPACE",
     "TIMELINE",
     "RecorderSettings",
     "TrialRecorder",
-    "format_summary",
-    "open_viewer",
     "recording_id",
-    "recording_summary",
-    "rerun_environment",
-    "rerun_executable",
-    "verify",
-    "viewer_command",
 ]

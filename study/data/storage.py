@@ -1,32 +1,13 @@
 """The study database: SQLAlchemy 2.0 ORM models, one module, versioned.
 
-Nothing else in the platform writes SQL. SQLite (one file per study, WAL mode,
-foreign keys on) by default; any SQLAlchemy URL for a server database.
-
-Tables (DESIGN.md, "Data"):
-
-- ``meta``: key/value, holds ``schema_version``.
-- ``study``: name, protocol text and its SHA-256, platform version, seed.
-- ``participant``: pseudonymous code, human or synthetic (with the synthetic
-  parameters), order index and mode permutation.
-- ``session``: one run of ``asa run``/``asa synth`` for a participant; a second
-  session for the same participant is refused unless forced, and the force is
-  recorded here (``forced``, ``note``), never silently.
-- ``trial``: phase, mode, ordinal, scenario, seed, status
-  (running/completed/aborted), times, and the outcome.
-- ``sample``: one row per control tick.
-- ``event``: collisions, region entry/exit, questions, answers, inspection,
-  dock, input device lost/regained, pauses, with a JSON ``detail``.
-- ``question``: one row per secondary-task question (shown, answered or timed
-  out). DESIGN.md lists questions only as events; a row per question makes the
-  analysis of answer times and errors a plain query, and the events stay too.
-- ``response``: questionnaire answers (instrument, item, value), including the
-  NASA-TLX pairwise choices (item ``pair:<a>|<b>``, text = chosen subscale).
-
-Integrity rules enforced by the session engine and checked by ``asa db check``:
-a trial row exists from its first tick with status ``running``; samples are
-flushed in batches at least once a second; completion is one transaction; a
-resumed session marks its running trial ``aborted`` and runs it again.
+Nothing else in the platform writes SQL. SQLite (one file per study, WAL mode, foreign
+keys on) by default; any SQLAlchemy URL for a server database. Tables (DESIGN.md "Data"):
+``meta`` (``schema_version``), ``study`` (protocol text and SHA-256, platform version,
+seed), ``participant`` (pseudonymous code, synthetic parameters, mode order), ``session``
+(one run for a participant; a forced second session is recorded), ``trial`` (phase, mode,
+status, times, outcome), ``sample`` (one per control tick), ``event`` (with a JSON
+``detail``), ``question`` (one per secondary-task question) and ``response``
+(questionnaire answers, NASA-TLX pairwise choices as items ``pair:<a>|<b>``).
 """
 
 from __future__ import annotations

@@ -1,30 +1,11 @@
-"""Counterbalancing the order of the control modes over the participants of a within-subjects study.
+"""Counterbalancing the order of the control modes over the participants of a
+within-subjects study (thesis sections 7.5, 7.6.1.3; spec section 7).
 
-Thesis section 7.6.1.3: "the order of the three control modes was rotated between different
-test participants following six different permutations, to prevent the mode bias from
-bringing up undesired confounding factors" (spec section 7); section 7.5 ran two modes in an
-order "unknown to the participants". Three schemes are offered; each gives participant ``i``
-(from 0) an order of the modes:
-
-- ``"full_permutation"`` (complete counterbalancing, the thesis's design): participant ``i``
-  gets permutation ``i mod k!`` of the modes, in :func:`itertools.permutations` order (the
-  lexicographic order of the positions in the protocol's mode list: for ``(a, b, c)`` the
-  rows are abc, acb, bac, bca, cab, cba). A study of ``n`` participants is completely
-  counterbalanced when ``n`` is a multiple of ``k!``.
-- ``"williams"`` (balanced Latin square, Williams 1949): the first row is
-  ``0, 1, k-1, 2, k-2, ...`` and row ``r`` adds ``r`` to it modulo ``k``; for odd ``k`` the
-  ``k`` mirrored rows follow, ``2k`` rows in all. Over one cycle every mode appears in every
-  position equally often and every ordered pair of different modes is adjacent equally
-  often (first-order carry-over balance). Participant ``i`` gets row ``i mod cycle``.
-- ``"random"`` (simple randomisation): each participant draws a uniformly random
-  permutation from the passed-in generator, independently; the row index reported is that
-  permutation's index in :func:`itertools.permutations` order. Balance is not guaranteed;
-  :func:`balance` reports what was reached.
-
-:func:`balance` counts positions and adjacent pairs for any list of orders and words the
-warnings an experimenter needs: which positions are unbalanced, and how far the number of
-participants is from a whole number of cycles. Pure: no I/O, randomness only through the
-generator passed in.
+Three schemes give participant ``i`` (from 0) an order of the modes: complete
+counterbalancing (``"full_permutation"``, the thesis's six permutations), a Williams
+design (``"williams"``, balanced Latin square) and simple randomisation (``"random"``).
+:func:`balance` counts positions and adjacent pairs and words the experimenter's warnings.
+Pure: no I/O, randomness only through the generator passed in.
 """
 
 from __future__ import annotations
@@ -60,7 +41,12 @@ def _check_scheme(scheme: str) -> None:
 
 
 def williams_square(k: int) -> list[tuple[int, ...]]:
-    """Rows of a Williams design (balanced Latin square) for ``k`` conditions.
+    """Rows of a Williams design (balanced Latin square, Williams 1949) for ``k`` conditions.
+
+    The first row is ``0, 1, k-1, 2, k-2, ...`` and row ``r`` adds ``r`` to it modulo ``k``;
+    for odd ``k`` the ``k`` mirrored rows follow. Over one cycle every condition appears in
+    every position equally often and every ordered pair of different conditions is
+    adjacent equally often (first-order carry-over balance).
 
     Parameters
     ----------
@@ -93,9 +79,11 @@ def williams_square(k: int) -> list[tuple[int, ...]]:
 def scheme_rows(modes: Sequence[str], scheme: str) -> list[tuple[str, ...]]:
     """The orders of one cycle of a deterministic scheme.
 
-    ``full_permutation``: the ``k!`` permutations in :func:`itertools.permutations` order;
-    ``williams``: the rows of :func:`williams_square`. ``random`` has no cycle
-    (``ValueError``).
+    ``full_permutation``: the ``k!`` permutations in :func:`itertools.permutations` order
+    (the lexicographic order of the positions in ``modes``: for ``(a, b, c)`` the rows are
+    abc, acb, bac, bca, cab, cba); ``n`` participants are completely counterbalanced when
+    ``n`` is a multiple of ``k!``. ``williams``: the rows of :func:`williams_square`.
+    ``random`` has no cycle (``ValueError``).
     """
     modes = _check_modes(modes)
     _check_scheme(scheme)
@@ -135,8 +123,10 @@ def assign_indexed(
 ) -> list[tuple[int, tuple[str, ...]]]:
     """Like :func:`assign`, with each participant's row index (stored as ``order_index``).
 
-    The row index is ``i mod cycle`` for the deterministic schemes and, for ``random``, the
-    drawn permutation's index in :func:`itertools.permutations` order of ``modes``.
+    Participant ``i`` gets row ``i mod cycle`` of a deterministic scheme. With ``random``
+    each participant draws a uniformly random permutation from ``rng``, independently (balance
+    is not guaranteed; :func:`balance` reports what was reached), and the row index is that
+    permutation's index in :func:`itertools.permutations` order of ``modes``.
     """
     modes = _check_modes(modes)
     _check_scheme(scheme)
@@ -200,6 +190,68 @@ def _times(n: int) -> str:
     return {0: "never", 1: "once", 2: "twice"}.get(n, f"{n} times")
 
 
+def _check_orders(orders: Sequence[Sequence[str]]) -> tuple[list[tuple[str, ...]], tuple[str, ...]]:
+    """The orders as tuples and their modes; ``ValueError`` unless all permute the same modes."""
+    orders = [tuple(o) for o in orders]
+    if not orders:
+        raise ValueError("orders: at least one participant's order is needed")
+    modes = _check_modes(orders[0])
+    for i, order in enumerate(orders):
+        if sorted(order) != sorted(modes):
+            raise ValueError(
+                f"orders[{i}]: must be a permutation of {', '.join(modes)}, got {list(order)}"
+            )
+    return orders, modes
+
+
+def _count(
+    orders: list[tuple[str, ...]], modes: tuple[str, ...]
+) -> tuple[dict[str, list[int]], dict[str, int]]:
+    """Times each mode is in each position, and times ``b`` directly follows ``a`` ("a>b")."""
+    positions = {m: [0] * len(modes) for m in modes}
+    pairs = {f"{a}>{b}": 0 for a in modes for b in modes if a != b}
+    for order in orders:
+        for p, m in enumerate(order):
+            positions[m][p] += 1
+        for a, b in itertools.pairwise(order):
+            pairs[f"{a}>{b}"] += 1
+    return positions, pairs
+
+
+def _warnings(
+    modes: tuple[str, ...],
+    n: int,
+    positions: dict[str, list[int]],
+    pairs: dict[str, int],
+    scheme: str | None,
+    cycle: int | None,
+) -> list[str]:
+    """The experimenter's warnings: unbalanced positions and carry-over, incomplete cycles."""
+    k = len(modes)
+    warnings: list[str] = []
+    for p in range(k):
+        counts = {m: positions[m][p] for m in modes}
+        if len(set(counts.values())) > 1:
+            warnings.append(f"position {p + 1} is unbalanced: {_counts_text(counts)}")
+    if len(set(pairs.values())) > 1 and k > 1:
+        low = min(pairs.values())
+        rare = [pair for pair, c in pairs.items() if c == low]
+        warnings.append(
+            f"carry-over is unbalanced: adjacent pairs occur {low} to {max(pairs.values())} "
+            f"times ({', '.join(rare)} least often)"
+        )
+    if cycle is not None and n % cycle != 0:
+        whole, rest = divmod(n, cycle)
+        suggestion = " or ".join(str(c * cycle) for c in (whole, whole + 1) if c > 0)
+        warnings.append(
+            f"{n} participants is not a multiple of the {scheme} cycle of {cycle}: "
+            f"{_rows(0, rest - 1)} used {_times(whole + 1)}, {_rows(rest, cycle - 1)} "
+            f"{_times(whole)}; "
+            f"use {suggestion} participants for a balanced design"
+        )
+    return warnings
+
+
 def balance(orders: Sequence[Sequence[str]], *, scheme: str | None = None) -> dict[str, Any]:
     """Position and carry-over balance of a list of mode orders, JSON-ready.
 
@@ -230,25 +282,11 @@ def balance(orders: Sequence[Sequence[str]], *, scheme: str | None = None) -> di
     ValueError
         No orders, or orders that are not permutations of the same distinct modes.
     """
-    orders = [tuple(o) for o in orders]
-    if not orders:
-        raise ValueError("orders: at least one participant's order is needed")
-    modes = _check_modes(orders[0])
-    for i, order in enumerate(orders):
-        if sorted(order) != sorted(modes):
-            raise ValueError(
-                f"orders[{i}]: must be a permutation of {', '.join(modes)}, got {list(order)}"
-            )
+    orders, modes = _check_orders(orders)
     if scheme is not None:
         _check_scheme(scheme)
     k, n = len(modes), len(orders)
-    positions = {m: [0] * k for m in modes}
-    pairs = {f"{a}>{b}": 0 for a in modes for b in modes if a != b}
-    for order in orders:
-        for p, m in enumerate(order):
-            positions[m][p] += 1
-        for a, b in itertools.pairwise(order):
-            pairs[f"{a}>{b}"] += 1
+    positions, pairs = _count(orders, modes)
     permutation_counts = dict(Counter(">".join(order) for order in orders))
 
     position_balanced = all(len({positions[m][p] for m in modes}) == 1 for p in range(k))
@@ -258,28 +296,7 @@ def balance(orders: Sequence[Sequence[str]], *, scheme: str | None = None) -> di
     )
     cycle = cycle_length(k, scheme) if scheme is not None else None
     complete = cycle is not None and n % cycle == 0
-
-    warnings: list[str] = []
-    for p in range(k):
-        counts = {m: positions[m][p] for m in modes}
-        if len(set(counts.values())) > 1:
-            warnings.append(f"position {p + 1} is unbalanced: {_counts_text(counts)}")
-    if not carryover_balanced and k > 1:
-        low = min(pairs.values())
-        rare = [pair for pair, c in pairs.items() if c == low]
-        warnings.append(
-            f"carry-over is unbalanced: adjacent pairs occur {low} to {max(pairs.values())} "
-            f"times ({', '.join(rare)} least often)"
-        )
-    if cycle is not None and not complete:
-        whole, rest = divmod(n, cycle)
-        suggestion = " or ".join(str(c * cycle) for c in (whole, whole + 1) if c > 0)
-        warnings.append(
-            f"{n} participants is not a multiple of the {scheme} cycle of {cycle}: "
-            f"{_rows(0, rest - 1)} used {_times(whole + 1)}, {_rows(rest, cycle - 1)} "
-            f"{_times(whole)}; "
-            f"use {suggestion} participants for a balanced design"
-        )
+    warnings = _warnings(modes, n, positions, pairs, scheme, cycle)
     if scheme == "full_permutation":
         balanced = fully
     elif scheme == "random":

@@ -1,44 +1,18 @@
 """Whole synthetic studies: every participant's session with synthetic participants, in
 worker processes, into one database that does not depend on the number of workers
-(issue 6; DESIGN.md "CI and pilots").
+(issue 6; DESIGN.md "CI and pilots"; thesis section 7.6).
 
-How it works (decisions where the spec is silent):
-
-- Participants are ``P01`` .. ``PNN`` (two digits at least, more when ``N >= 100``), so
-  the counterbalancing row follows the code (:mod:`study.engine.session`). Participant ``i``
-  (from 0) has the seed ``derive_seed(seed, i)`` (stored as the participant's seed and
-  used by the session for its trials) and draws its parameters and behaviour from a
-  generator seeded with ``derive_seed(seed, i, 1)``: nothing depends on which process
-  runs it or when. The participant's stored parameters add ``synthetic_study_seed`` and
-  ``index``, so every participant can be drawn again.
-- Each participant runs in its own temporary SQLite file ``<db stem>_work/<code>.db``
-  beside the database, in a worker process (``concurrent.futures.ProcessPoolExecutor``
-  with the *spawn* start method, so no pybullet connection or open database is ever
-  inherited through ``fork``); with one worker it runs in this process. The parent merges
-  finished participants into the database strictly in participant order, one
-  transaction per participant, with fresh row ids (:func:`merge_participant`), and then
-  deletes the temporary file. The sample rows (the bulk of a participant) are copied
-  as the driver's plain tuples, their stored values unconverted. Recordings go straight
-  to their final folder (``<db stem>_recordings/<code>/`` by default); the merge rewrites
-  ``trial.recording_path`` relative to the database's folder. The temporary files are
-  opened without fsync on commit (``durable=False``): after a crash they are deleted and
-  rebuilt anyway, and the merge into the study database is durable as always.
-- Interrupted and started again with the same options: participants already in the
-  database are skipped (a merge is one transaction, so a participant is either wholly
-  there or not at all); any other participant is run again from scratch, its temporary
-  file and its recordings folder deleted first. Results tables are then the same as an
-  uninterrupted run's (wall-clock timestamps excepted).
-- A database that holds another protocol's study is refused (``ValueError``).
-- Only SQLite files: the temporary files and the merge need a file path.
-- JSON details of events are copied as they are (a fresh session has no event whose
-  detail holds row ids).
+Each participant runs into its own temporary SQLite file in a *spawn* worker; the parent
+merges finished participants in participant order (:mod:`study.data.merge`). Started
+again after an interruption, participants already in the database are skipped and the
+others run from scratch. Also the pilot's sanity summary.
 """
 
 from __future__ import annotations
 
 import concurrent.futures as cf
+import contextlib
 import multiprocessing
-import os
 import shutil
 import time
 from collections.abc import Callable
@@ -47,14 +21,13 @@ from pathlib import Path
 from typing import Any
 
 from sqlalchemy import select
-from sqlalchemy.engine import Connection, Engine
+from sqlalchemy.engine import Engine
 
-from study.participants.synthetic import Population, SyntheticParticipant
+from study.data.merge import merge_participant, merged_codes, table_rows
+from study.data.storage import Base, open_database
 from study.engine.protocol import Protocol, load_protocol
 from study.engine.session import derive_seed, run_session
-from study.data.storage import Base, open_database
-
-_CHUNK = 5000  # rows per executemany when copying samples
+from study.participants.synthetic import Population, SyntheticParticipant
 
 
 @dataclass(frozen=True, slots=True)
@@ -109,7 +82,7 @@ def _run_job(job: _Job) -> _Done:
     import numpy as np
 
     try:
-        from study.cli import limit_blas_threads
+        from study._blas import limit_blas_threads
 
         limit_blas_threads()
     except ValueError:
@@ -136,162 +109,6 @@ def _run_job(job: _Job) -> _Done:
     return _Done(job.index, job.code, summary.status, time.perf_counter() - start, simulated)
 
 
-# ------------------------------------------------------------------------- merging
-
-
-def _rows(conn: Connection, table: str, where: Any = None) -> list[dict[str, Any]]:
-    t = Base.metadata.tables[table]
-    query = select(t).order_by(t.c.id)
-    if where is not None:
-        query = query.where(where(t))
-    return [dict(r._mapping) for r in conn.execute(query)]
-
-
-def _insert(conn: Connection, table: str, row: dict[str, Any]) -> int:
-    t = Base.metadata.tables[table]
-    values = {k: v for k, v in row.items() if k != "id"}
-    return int(conn.execute(t.insert().values(**values)).inserted_primary_key[0])
-
-
-def _bulk(conn: Connection, table: str, rows: list[dict[str, Any]]) -> None:
-    t = Base.metadata.tables[table]
-    for i in range(0, len(rows), _CHUNK):
-        chunk = [{k: v for k, v in r.items() if k != "id"} for r in rows[i : i + _CHUNK]]
-        if chunk:
-            conn.execute(t.insert(), chunk)
-
-
-def _sample_columns() -> list[str]:
-    return [c.name for c in Base.metadata.tables["sample"].columns if c.name != "id"]
-
-
-def _sample_tuples(conn: Connection) -> list[tuple[Any, ...]]:
-    """Every sample row (without ``id``, in id order) as the driver's plain tuples: the
-    bulk of a participant (some 16,000 rows), copied without per-row dictionaries."""
-    columns = ", ".join(f'"{c}"' for c in _sample_columns())
-    return list(conn.exec_driver_sql(f"SELECT {columns} FROM sample ORDER BY id"))
-
-
-def _copy_samples(
-    conn: Connection, samples: list[tuple[Any, ...]], trial_ids: dict[int, int]
-) -> None:
-    """Insert ``samples`` (from :func:`_sample_tuples`) with their trial ids remapped; the
-    stored values are those of the source rows (SQLite's own types, unconverted)."""
-    names = _sample_columns()
-    at = names.index("trial_id")
-    columns = ", ".join(f'"{c}"' for c in names)
-    marks = ", ".join("?" * len(names))
-    sql = f"INSERT INTO sample ({columns}) VALUES ({marks})"
-    for i in range(0, len(samples), _CHUNK):
-        chunk = [(*r[:at], trial_ids[r[at]], *r[at + 1 :]) for r in samples[i : i + _CHUNK]]
-        if chunk:
-            conn.exec_driver_sql(sql, chunk)
-
-
-def merge_participant(src: Path, dst: Engine, *, src_folder: Path, dst_folder: Path) -> str:
-    """Copy the one participant of the database ``src`` into ``dst`` in one transaction.
-
-    Row ids are assigned afresh in ``dst`` and every reference is remapped; the study row
-    is copied if ``dst`` has none; ``trial.recording_path`` is rewritten from relative to
-    ``src_folder`` to relative to ``dst_folder``.
-
-    Returns
-    -------
-    str
-        The participant's code.
-
-    Raises
-    ------
-    ValueError
-        ``dst`` holds a study of another protocol, or ``src`` does not hold exactly one
-        participant, or the participant is already in ``dst``.
-    """
-    source = open_database(src, create=False)
-    try:
-        with source.connect() as sc:
-            study = _rows(sc, "study")
-            people = _rows(sc, "participant")
-            sessions = _rows(sc, "session")
-            trials = _rows(sc, "trial")
-            samples = _sample_tuples(sc)
-            events = _rows(sc, "event")
-            questions = _rows(sc, "question")
-            responses = _rows(sc, "response")
-    finally:
-        source.dispose()
-    if len(study) != 1 or len(people) != 1:
-        raise ValueError(f"{src}: expected one study and one participant to merge")
-    person = people[0]
-    with dst.begin() as conn:
-        have = _rows(conn, "study")
-        if have:
-            study_id = have[0]["id"]
-            if have[0]["protocol_sha256"] != study[0]["protocol_sha256"]:
-                raise ValueError(
-                    f"field 'study.protocol_sha256': the database holds study "
-                    f"{have[0]['name']!r} of another protocol; use a new --db"
-                )
-        else:
-            study_id = _insert(conn, "study", study[0])
-        pt = Base.metadata.tables["participant"]
-        if conn.execute(
-            select(pt.c.id).where(pt.c.study_id == study_id, pt.c.code == person["code"])
-        ).first():
-            raise ValueError(f"participant {person['code']} is already in the database")
-        pid = _insert(conn, "participant", {**person, "study_id": study_id})
-        session_ids = {
-            s["id"]: _insert(conn, "session", {**s, "participant_id": pid}) for s in sessions
-        }
-        trial_ids: dict[int, int] = {}
-        for t in trials:
-            path = t["recording_path"]
-            if path:
-                path = os.path.relpath((src_folder / path).resolve(), dst_folder.resolve())
-            trial_ids[t["id"]] = _insert(
-                conn,
-                "trial",
-                {
-                    **t,
-                    "participant_id": pid,
-                    "session_id": session_ids[t["session_id"]],
-                    "recording_path": path,
-                },
-            )
-
-        def tid(value: int | None) -> int | None:
-            return None if value is None else trial_ids[value]
-
-        _copy_samples(conn, samples, trial_ids)
-        _bulk(
-            conn,
-            "event",
-            [
-                {**r, "session_id": session_ids[r["session_id"]], "trial_id": tid(r["trial_id"])}
-                for r in events
-            ],
-        )
-        _bulk(conn, "question", [{**r, "trial_id": trial_ids[r["trial_id"]]} for r in questions])
-        _bulk(
-            conn,
-            "response",
-            [{**r, "participant_id": pid, "trial_id": tid(r["trial_id"])} for r in responses],
-        )
-    return str(person["code"])
-
-
-def _merged_codes(db: Path) -> tuple[set[str], str | None]:
-    if not db.exists():
-        return set(), None
-    engine = open_database(db, create=False)
-    try:
-        with engine.connect() as conn:
-            names = {r["code"] for r in _rows(conn, "participant")}
-            study = _rows(conn, "study")
-    finally:
-        engine.dispose()
-    return names, (study[0]["protocol_sha256"] if study else None)
-
-
 # ------------------------------------------------------------------------- the study
 
 
@@ -299,6 +116,17 @@ def _check_int(value: Any, field: str, minimum: int) -> int:
     if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
         raise ValueError(f"{field}: must be an integer >= {minimum}, got {value!r}")
     return value
+
+
+def _check_options(
+    participants: Any, seed: Any, workers: Any, db: str | Path
+) -> tuple[int, int, int]:
+    n = _check_int(participants, "participants", 1)
+    seed = _check_int(seed, "seed", 0)
+    workers = _check_int(workers, "workers", 1)
+    if "://" in str(db):
+        raise ValueError(f"db: a SQLite file path is needed for synthetic studies, got {db}")
+    return n, seed, workers
 
 
 def run_synthetic_study(
@@ -317,7 +145,8 @@ def run_synthetic_study(
     Parameters
     ----------
     protocol : Protocol or str
-        A loaded protocol or a shipped name / TOML file (:func:`study.engine.protocol.load_protocol`).
+        A loaded protocol or a shipped name / TOML file
+        (:func:`study.engine.protocol.load_protocol`).
     db : str or Path
         SQLite file (created if missing; participants already in it are skipped).
     participants : int
@@ -342,21 +171,87 @@ def run_synthetic_study(
     Raises
     ------
     ValueError
-        Bad options (naming them), a database URL instead of a file, a database of
+        Bad parameters (naming them), a database URL instead of a file, a database of
         another protocol.
     """
     start = time.perf_counter()
     say = progress if progress is not None else (lambda line: None)
-    n = _check_int(participants, "--participants", 1)
-    seed = _check_int(seed, "--seed", 0)
-    workers = _check_int(workers, "--workers", 1)
-    if "://" in str(db):
-        raise ValueError(f"--db: a SQLite file path is needed for synthetic studies, got {db}")
+    n, seed, workers = _check_options(participants, seed, workers, db)
     proto = load_protocol(protocol) if isinstance(protocol, str | Path) else protocol
     population = population if population is not None else Population()
+    db_path, work, rec = _paths(db, recordings)
+    codes = participant_codes(n)
+    todo, skipped = _todo(codes, db, db_path, proto)
+    if skipped:
+        say(f"{len(skipped)} participant(s) already in {db_path.name}: skipped")
+    work.mkdir(exist_ok=True)
+    jobs = [
+        _job(i, codes[i], seed, proto, work=work, recordings=rec, population=population)
+        for i in todo
+    ]
+    merger = _Merger(open_database(db_path), jobs, work, total=n, skipped=len(skipped), say=say)
+    try:
+        _run_jobs(jobs, workers, merger.finish)
+    finally:
+        merger.engine.dispose()
+    if not merger.order:
+        with contextlib.suppress(OSError):
+            work.rmdir()
+    return SynthSummary(
+        db=db_path,
+        codes=codes,
+        run=tuple(j.code for j in jobs),
+        skipped=skipped,
+        statuses=merger.statuses,
+        wall_s=time.perf_counter() - start,
+    )
+
+
+def _todo(
+    codes: tuple[str, ...], db: str | Path, db_path: Path, protocol: Protocol
+) -> tuple[list[int], tuple[str, ...]]:
+    """Indices of the participants still to run, and the codes already in the database."""
+    merged, sha = merged_codes(db_path)
+    if sha is not None and sha != protocol.sha256:
+        raise ValueError(
+            f"{db}: field 'study.protocol_sha256': the database was made with another "
+            f"protocol than {protocol.source}; use a new database file"
+        )
+    todo = [i for i, code in enumerate(codes) if code not in merged]
+    return todo, tuple(c for c in codes if c in merged)
+
+
+def _job(
+    index: int,
+    code: str,
+    seed: int,
+    protocol: Protocol,
+    *,
+    work: Path,
+    recordings: Path,
+    population: Population,
+) -> _Job:
+    """Participant ``index`` of a study seeded with ``seed``: its session seed, its
+    behaviour seed and its temporary database."""
+    return _Job(
+        index=index,
+        code=code,
+        seed=derive_seed(seed, index),
+        behaviour_seed=derive_seed(seed, index, 1),
+        protocol=protocol,
+        work_db=work / f"{code}.db",
+        recordings=recordings,
+        population=population,
+        study_seed=seed,
+    )
+
+
+def _paths(db: str | Path, recordings: str | Path | None) -> tuple[Path, Path, Path]:
+    """The database file, the folder of the temporary files and the recordings folder
+    (the database's folder is created)."""
     db_path = Path(db).resolve()
     if db_path.exists() and db_path.is_dir():
-        raise ValueError(f"--db: {db} is a folder; give a database file")
+        raise ValueError(f"db: {db} is a folder; give a database file")
     folder = db_path.parent
     folder.mkdir(parents=True, exist_ok=True)
     work = folder / f"{db_path.stem}_work"
@@ -365,96 +260,74 @@ def run_synthetic_study(
         if recordings is not None
         else folder / f"{db_path.stem}_recordings"
     )
-    codes = participant_codes(n)
-    merged, sha = _merged_codes(db_path)
-    if sha is not None and sha != proto.sha256:
-        raise ValueError(
-            f"{db}: field 'study.protocol_sha256': the database was made with another "
-            f"protocol than {proto.source}; use a new --db"
-        )
-    todo = [i for i, code in enumerate(codes) if code not in merged]
-    skipped = tuple(c for c in codes if c in merged)
-    if skipped:
-        say(f"{len(skipped)} participant(s) already in {db_path.name}: skipped")
-    work.mkdir(exist_ok=True)
-    jobs = [
-        _Job(
-            index=i,
-            code=codes[i],
-            seed=derive_seed(seed, i),
-            behaviour_seed=derive_seed(seed, i, 1),
-            protocol=proto,
-            work_db=work / f"{codes[i]}.db",
-            recordings=rec,
-            population=population,
-            study_seed=seed,
-        )
-        for i in todo
-    ]
-    engine = open_database(db_path)
-    statuses: dict[str, str] = {}
-    done: dict[int, _Done] = {}
-    order = [j.index for j in jobs]
-    finished = 0
+    return db_path, work, rec
 
-    def merge_ready() -> None:
-        while order and order[0] in done:
-            d = done.pop(order.pop(0))
-            job = next(j for j in jobs if j.index == d.index)
-            merge_participant(job.work_db, engine, src_folder=work, dst_folder=folder)
+
+class _Merger:
+    """Reports each finished participant and merges finished participants into the study
+    database strictly in participant order, whatever order they finish in."""
+
+    def __init__(
+        self,
+        engine: Engine,
+        jobs: list[_Job],
+        work: Path,
+        *,
+        total: int,
+        skipped: int,
+        say: Callable[[str], None],
+    ) -> None:
+        self.engine = engine
+        self.work = work
+        self.jobs = {j.index: j for j in jobs}
+        self.order = [j.index for j in jobs]  # not yet merged, in participant order
+        self.done: dict[int, _Done] = {}
+        self.statuses: dict[str, str] = {}
+        self.total = total
+        self.skipped = skipped
+        self.finished = 0
+        self.say = say
+
+    def finish(self, d: _Done) -> None:
+        """Report ``d``, then merge every participant whose turn has come."""
+        self.finished += 1
+        self.statuses[d.code] = d.status
+        self.say(
+            f"[{self.skipped + self.finished}/{self.total}] {d.code} {d.status}: "
+            f"{d.simulated_s:.0f} s of trials in {d.wall_s:.1f} s "
+            f"({d.simulated_s / max(d.wall_s, 1e-9):.0f}x real time)"
+        )
+        self.done[d.index] = d
+        while self.order and self.order[0] in self.done:
+            done = self.done.pop(self.order.pop(0))
+            job = self.jobs[done.index]
+            merge_participant(
+                job.work_db, self.engine, src_folder=self.work, dst_folder=self.work.parent
+            )
             _remove_db(job.work_db)
 
-    def report(d: _Done) -> None:
-        nonlocal finished
-        finished += 1
-        statuses[d.code] = d.status
-        total = len(skipped) + finished
-        say(
-            f"[{total}/{n}] {d.code} {d.status}: {d.simulated_s:.0f} s of trials in "
-            f"{d.wall_s:.1f} s ({d.simulated_s / max(d.wall_s, 1e-9):.0f}x real time)"
-        )
 
+def _run_jobs(jobs: list[_Job], workers: int, finish: Callable[[_Done], None]) -> None:
+    """Run ``jobs`` in this process (one worker) or in a spawn pool; ``finish`` each."""
+    if workers == 1 or len(jobs) <= 1:
+        for job in jobs:
+            finish(_run_job(job))
+        return
+    ctx = multiprocessing.get_context("spawn")
+    pool = cf.ProcessPoolExecutor(max_workers=min(workers, len(jobs)), mp_context=ctx)
+    clean = False
     try:
-        if workers == 1 or len(jobs) <= 1:
-            for job in jobs:
-                d = _run_job(job)
-                report(d)
-                done[d.index] = d
-                merge_ready()
-        else:
-            ctx = multiprocessing.get_context("spawn")
-            pool = cf.ProcessPoolExecutor(max_workers=min(workers, len(jobs)), mp_context=ctx)
-            clean = False
-            try:
-                futures = [pool.submit(_run_job, job) for job in jobs]
-                for fut in cf.as_completed(futures):
-                    d = fut.result()
-                    report(d)
-                    done[d.index] = d
-                    merge_ready()
-                clean = True
-            finally:
-                if not clean:
-                    # interrupted: stop the running participants (they are run again next
-                    # time); a worker would otherwise go on with jobs already queued to it
-                    for proc in list(getattr(pool, "_processes", {}).values()):
-                        proc.terminate()
-                pool.shutdown(wait=clean, cancel_futures=True)
+        futures = [pool.submit(_run_job, job) for job in jobs]
+        for fut in cf.as_completed(futures):
+            finish(fut.result())
+        clean = True
     finally:
-        engine.dispose()
-    if not order:
-        try:
-            work.rmdir()
-        except OSError:
-            pass
-    return SynthSummary(
-        db=db_path,
-        codes=codes,
-        run=tuple(j.code for j in jobs),
-        skipped=skipped,
-        statuses=statuses,
-        wall_s=time.perf_counter() - start,
-    )
+        if not clean:
+            # interrupted: stop the running participants (they are run again next
+            # time); a worker would otherwise go on with jobs already queued to it
+            for proc in list(getattr(pool, "_processes", {}).values()):
+                proc.terminate()
+        pool.shutdown(wait=clean, cancel_futures=True)
 
 
 # ------------------------------------------------------------------------- sanity summary
@@ -473,7 +346,7 @@ def sanity_summary(db: str | Path, *, phase: str = "main") -> dict[str, dict[str
     out: dict[str, dict[str, Any]] = {}
     try:
         with engine.connect() as conn:
-            trials = _rows(conn, "trial", lambda t: t.c.phase == phase)
+            trials = table_rows(conn, "trial", lambda t: t.c.phase == phase)
             by_mode: dict[str, list[dict[str, Any]]] = {}
             for t in trials:
                 if t["status"] == "completed":

@@ -1,104 +1,15 @@
-"""Study protocols: a TOML file validated into frozen dataclasses that carry a whole study.
+"""Reading a protocol's TOML file into a :class:`~study.engine.protocol.types.Protocol`.
 
-A protocol says who takes part (how many, seeded how), which control modes are compared
-and how their order is counterbalanced (:mod:`study.engine.counterbalance`), the phases of a
-session in order, the secondary-task settings, the scoring, the analysis, and the
-participant interface's window, instruction texts and gamepad mapping. The session engine
-runs a :class:`Protocol`; storage keeps its ``text`` and ``sha256``.
-
-Sources: thesis section 7.6.1.3 "Test procedure" (briefing, an experience questionnaire,
-a training course with direct view of the scene and the secondary task, "a practice
-obstacle task for one time with each of the three control modes ... within a specific time
-limit, without collision" and without the secondary task, a 40-question baseline without
-driving, main trials in six rotated orders, NASA-TLX after every trial), sections
-7.6.1.1-7.6.1.2 (route A -> B -> A with the cylinder inspection, 20 questions per entry into
-the region), section 7.5 (manual vs reactive, two orders unknown to the participants),
-spec section 7.
-
-File format (every table and field optional unless marked; unknown keys are refused)::
-
-    [study]
-    name = "thesis-7-6"                 # required
-    title = "..."
-    description = "..."
-    participants = 18                   # default N for planning
-    seed = 7061                         # study seed, stored with the data
-
-    [modes]
-    names = ["manual", "reactive_bn"]   # required: registered modes, >= 2, distinct
-    counterbalancing = "full_permutation"   # | "williams" | "random"
-    hidden = true                       # the active mode is never shown
-    [modes.settings.reactive_bn]        # keyword settings for autonomy.modes.make_mode
-    ...
-
-    [[phases]]                          # in the order they run; "main" is required
-    kind = "briefing"                   # briefing experience training practice
-    text = "..."                        # baseline main debrief
-    ...
-    [[phases]]
-    kind = "main"
-    scenario = "cluttered_room"         # required
-    route = ["A", "B", "A"]
-    [phases.after_trial]                # the questionnaire after every main trial
-    instrument = "nasa_tlx"
-    weights = "per_trial"               # | "once" | "raw"
-
-    [secondary]   p_correct, timeout_s, gap_s, near_miss_offsets, p_addition
-    [scoring]     collision_penalty_s
-    [analysis]    alpha, gate, posthoc, metrics, secondary_baseline_level
-    [ui]          window, fullscreen, show_map; [ui.instructions] phase kind -> text
-    [input]       deadzone; [input.axes] vx vy yaw -> index; [input.buttons] yes no pause
-                  -> index; invert = ["vx"]
-
-Decisions where the thesis and the brief are silent:
-
-- ``modes.hidden`` is kept as a field but only ``true`` is accepted: the session engine
-  never shows the active mode (thesis 7.5 and 7.6: the participant is not told), and a
-  field the engine would silently ignore is worse than a refusal.
-- Phases run in the fixed order briefing, experience, training, practice, baseline, main,
-  debrief (issue 4's state machine; the thesis names the experience questionnaire "before
-  the user study" and the baseline "in addition to the training course"). Each kind may
-  appear at most once; all but ``main`` are optional; a file listing them in another order
-  is refused rather than reordered.
-- A phase's ``scenario`` is a shipped scenario's name or a ``*.toml`` file, relative to
-  the protocol's folder; the loaded phase holds the resolved path, so the session engine
-  can pass it straight to :func:`sim.scenario.load_scenario`.
-- The secondary task's block size lives in the ``main`` phase (``block_size``, the
-  thesis's 20 per entry) and the baseline's size in the ``baseline`` phase (``questions``,
-  40); ``[secondary]`` holds the rest of :class:`tasks.secondary.SecondarySettings`, and
-  :attr:`Protocol.secondary_settings` puts them together. Giving either size in
-  ``[secondary]`` is refused with a pointer to its place.
-- Training: ``duration_s`` is per mode; without it the run is free (ended by the
-  experimenter, or by a synthetic participant on finishing the route). Its ``modes``
-  default to all of the protocol's, in the protocol's order (the experimenter introduces
-  them), and must be among them.
-- Practice runs once per mode in the participant's assigned order (``order =
-  "assigned"``; ``"protocol"`` for the file's order), from A to the scenario's dock pose;
-  an attempt passes with at most ``max_collisions`` collisions (thesis: none) within
-  ``time_limit_s``. After ``max_attempts`` failures, ``on_fail = "exclude"`` ends the
-  session (the thesis required the practice "to proceed to the actual experiment") and
-  ``"continue"`` records the failure and goes on (for pilots).
-- Routes are lists of "A" (start pose) and "B" (dock pose), starting at A, with no step
-  from a point to itself; "B" needs a scenario with a dock, ``inspection = true`` one with
-  an inspection object, ``secondary = true`` one with a question region. Scenario names
-  are checked by loading them.
-- ``end_on_collision`` (main phase): in thesis 7.5 a collision crashed the quadrotor and
-  ended the trial (its clearance then counts as zero, Table 7.10).
-- NASA-TLX weights: ``"per_trial"`` asks the 15 pairwise comparisons after every trial
-  (Hart & Staveland's procedure weights each task condition), ``"once"`` after the last
-  main trial only, for all; ``"raw"`` asks none (RTLX).
-- ``alpha`` is a field of ``[analysis]`` only (not also of ``[study]``), so the two cannot
-  disagree. Gates are those of :mod:`analysis.stats` (``GATES``); post hoc leads are
-  ``"lsd_paired"`` and ``"lsd_pooled"``; metric names are :data:`METRICS`.
-- The mappings in a protocol (instruction texts, gamepad indices, mode settings) are
-  plain dicts, read-only by convention: a :class:`Protocol` must pickle, so that worker
-  processes of a synthetic study can receive it (``MappingProxyType`` does not pickle).
-- The gamepad defaults are a Logitech F710 in XInput mode as SDL2 numbers it (spec 7:
-  "Logitech F710 class"): left stick axes 0/1 for sideways/forwards, right stick axis 3
-  for turning, A = Yes, B = No, Start = the experimenter's pause; all three axes are
-  inverted (a stick pushed forward or left, or right for turning, reads negative).
-- Mode settings are checked by building each mode once at load time
-  (:func:`autonomy.modes.make_mode`), so a bad setting fails before any participant comes.
+Tables and fields (every one optional unless marked; unknown keys are refused):
+``[study]`` name (required), title, description, participants, seed;
+``[modes]`` names (required, >= 2, distinct), counterbalancing, hidden,
+``[modes.settings.<mode>]``; ``[[phases]]`` kind, in the order they run ("main"
+required, with its scenario; ``[phases.after_trial]`` instrument, weights);
+``[secondary]`` p_correct, timeout_s, gap_s, near_miss_offsets, p_addition;
+``[scoring]`` collision_penalty_s; ``[analysis]`` alpha, gate, posthoc, metrics,
+secondary_baseline_level; ``[ui]`` window, fullscreen, show_map, ``[ui.instructions]``;
+``[input]`` deadzone, ``[input.axes]``, ``[input.buttons]``, invert.
+The shipped files in ``protocols/`` show every table.
 """
 
 from __future__ import annotations
@@ -107,252 +18,48 @@ import hashlib
 import itertools
 import tomllib
 from collections.abc import Collection, Mapping
-from dataclasses import dataclass, field, replace
 from pathlib import Path
-from types import MappingProxyType
-from typing import Any, ClassVar
+from typing import Any
 
 from autonomy.modes import available_modes, make_mode
 from protocols import PROTOCOL_DIR, available
-from questionnaires import experience as experience_q
 from questionnaires import nasa_tlx
 from sim.fields import FieldReader
 from sim.scenario import Scenario, load_scenario
 from study.engine.counterbalance import SCHEMES
+from study.engine.protocol.types import (
+    AFTER_TRIAL_INSTRUMENTS,
+    AXES,
+    BUTTONS,
+    DEFAULT_AXES,
+    DEFAULT_BUTTONS,
+    DEFAULT_INVERT,
+    EXPERIENCE_INSTRUMENTS,
+    GATES,
+    METRICS,
+    ON_FAIL,
+    PHASE_KINDS,
+    POSTHOC,
+    PRACTICE_ORDERS,
+    ROUTE_POINTS,
+    TLX_WEIGHTS,
+    AfterTrial,
+    AnalysisSettings,
+    Baseline,
+    Briefing,
+    Debrief,
+    ExperiencePhase,
+    InputSettings,
+    MainTrials,
+    Phase,
+    Practice,
+    Protocol,
+    Scoring,
+    StudyInfo,
+    Training,
+    UiSettings,
+)
 from tasks.secondary import SecondarySettings
-
-PHASE_KINDS: tuple[str, ...] = (
-    "briefing",
-    "experience",
-    "training",
-    "practice",
-    "baseline",
-    "main",
-    "debrief",
-)
-ROUTE_POINTS: tuple[str, ...] = ("A", "B")
-POSTHOC: tuple[str, ...] = ("lsd_paired", "lsd_pooled")
-# analysis.stats.GATES, repeated so that loading a protocol does not import scipy and pandas
-# (about 1.5 s); tests/test_protocol.py checks that the two agree.
-GATES: tuple[str, ...] = ("auto", "uncorrected", "greenhouse_geisser")
-TLX_WEIGHTS: tuple[str, ...] = ("per_trial", "once", "raw")
-AFTER_TRIAL_INSTRUMENTS: tuple[str, ...] = (nasa_tlx.INSTRUMENT_ID,)
-EXPERIENCE_INSTRUMENTS: tuple[str, ...] = (experience_q.INSTRUMENT_ID,)
-PRACTICE_ORDERS: tuple[str, ...] = ("assigned", "protocol")
-ON_FAIL: tuple[str, ...] = ("exclude", "continue")
-# Per-trial metrics the analysis can compute from a study database (thesis 7.5, 7.6.1.3).
-METRICS: tuple[str, ...] = (
-    "completion_time_s",
-    "collisions",
-    "score_s",
-    "path_length_m",
-    "clearance_mean_m",
-    "clearance_std_m",
-    "clearance_min_m",
-    "clearance_histogram",
-    "secondary_answer_time_s",
-    "secondary_errors",
-    "secondary_misses",
-    "tlx_raw",
-    "tlx_weighted",
-)
-AXES: tuple[str, ...] = ("vx", "vy", "yaw")
-BUTTONS: tuple[str, ...] = ("yes", "no", "pause")
-# Defaults for a Logitech F710 in XInput mode as SDL2/pygame numbers it.
-DEFAULT_AXES: Mapping[str, int] = MappingProxyType({"vy": 0, "vx": 1, "yaw": 3})
-DEFAULT_BUTTONS: Mapping[str, int] = MappingProxyType({"yes": 0, "no": 1, "pause": 7})
-# Stick forward, stick left and right stick right read negative; robot x is forwards,
-# y to the left, yaw counter-clockwise: all three flip.
-DEFAULT_INVERT: tuple[str, ...] = ("vx", "vy", "yaw")
-
-
-# --------------------------------------------------------------------------- types
-
-
-@dataclass(frozen=True, slots=True)
-class StudyInfo:
-    """Who takes part and how the study is seeded."""
-
-    name: str
-    title: str
-    description: str
-    participants: int  # default number of participants for planning
-    seed: int  # study seed, stored with the data
-
-
-@dataclass(frozen=True, slots=True)
-class Briefing:
-    """What the experimenter tells the participant first (thesis 7.6.1.3)."""
-
-    kind: ClassVar[str] = "briefing"
-    text: str
-
-
-@dataclass(frozen=True, slots=True)
-class ExperiencePhase:
-    """The experience questionnaire before the study (thesis 7.6.1.3)."""
-
-    kind: ClassVar[str] = "experience"
-    instrument: str  # questionnaire id, "experience"
-
-
-@dataclass(frozen=True, slots=True)
-class Training:
-    """Free driving to learn the interface and the modes (thesis 7.6.1.3)."""
-
-    kind: ClassVar[str] = "training"
-    scenario: str
-    duration_s: float | None  # [s] per mode; None: free run
-    secondary: bool  # questions on entering the region
-    direct_view: bool  # the scene may be viewed directly, not only via the interface
-    modes: tuple[str, ...]  # in the order they are introduced
-
-
-@dataclass(frozen=True, slots=True)
-class Practice:
-    """The practice obstacle task, once per mode, with pass criteria (thesis 7.6.1.3)."""
-
-    kind: ClassVar[str] = "practice"
-    scenario: str
-    time_limit_s: float  # [s] an attempt must reach the goal within it
-    max_collisions: int  # collisions allowed in a passing attempt (thesis: 0)
-    max_attempts: int  # attempts per mode
-    secondary: bool  # thesis: no secondary task
-    order: str  # PRACTICE_ORDERS
-    on_fail: str  # ON_FAIL
-
-
-@dataclass(frozen=True, slots=True)
-class Baseline:
-    """The secondary task alone, without driving (thesis 7.6.1.3: 40 questions)."""
-
-    kind: ClassVar[str] = "baseline"
-    questions: int
-
-
-@dataclass(frozen=True, slots=True)
-class AfterTrial:
-    """The questionnaire after every main trial."""
-
-    instrument: str  # AFTER_TRIAL_INSTRUMENTS
-    weights: str  # TLX_WEIGHTS
-
-
-@dataclass(frozen=True, slots=True)
-class MainTrials:
-    """One trial per mode in the participant's order (thesis 7.6.1.2)."""
-
-    kind: ClassVar[str] = "main"
-    scenario: str
-    route: tuple[str, ...]  # of ROUTE_POINTS: "A" start pose, "B" dock pose
-    inspection: bool  # the inspection object must be inspected on the way
-    timeout_s: float  # [s] a trial not finished by then ends as timed out
-    secondary: bool  # questions on entering the region
-    block_size: int  # questions per entry into the region (thesis: 20)
-    end_on_collision: bool  # a collision ends the trial (thesis 7.5: a crash)
-    after_trial: AfterTrial | None
-
-
-@dataclass(frozen=True, slots=True)
-class Debrief:
-    """The closing text, after the last trial."""
-
-    kind: ClassVar[str] = "debrief"
-    text: str
-
-
-Phase = Briefing | ExperiencePhase | Training | Practice | Baseline | MainTrials | Debrief
-
-
-@dataclass(frozen=True, slots=True)
-class Scoring:
-    """The primary-task score: completion time plus a penalty per collision (spec 7)."""
-
-    collision_penalty_s: float  # [s] added to the completion time per collision (thesis: 60)
-
-
-@dataclass(frozen=True, slots=True)
-class AnalysisSettings:
-    """How the study's data are tested (thesis 7.6.2, spec 7)."""
-
-    alpha: float  # significance level
-    gate: str  # analysis.stats.GATES
-    posthoc: str  # POSTHOC
-    metrics: tuple[str, ...]  # of METRICS
-    secondary_baseline_level: bool  # the baseline as a further level for secondary metrics
-
-
-@dataclass(frozen=True, slots=True)
-class UiSettings:
-    """The participant's screen, read by the human interface."""
-
-    window: tuple[int, int]  # [px] width, height
-    fullscreen: bool
-    show_map: bool  # the complete map of the scene (thesis 7.6: yes; 7.5: no)
-    instructions: Mapping[str, str]  # phase kind -> text shown before it
-
-
-@dataclass(frozen=True, slots=True)
-class InputSettings:
-    """The gamepad mapping, read by the human interface."""
-
-    axes: Mapping[str, int]  # AXES -> gamepad axis index
-    buttons: Mapping[str, int]  # BUTTONS -> gamepad button index
-    invert: tuple[str, ...]  # axes whose sign is flipped
-    deadzone: float  # stick magnitude below which input is zero, [0, 1)
-
-
-@dataclass(frozen=True, slots=True)
-class Protocol:
-    """A validated study protocol. ``text`` is the file's exact text, ``sha256`` its hash."""
-
-    source: str  # the file it was loaded from
-    study: StudyInfo
-    modes: tuple[str, ...]  # registered mode names, in the file's order
-    counterbalancing: str  # study.engine.counterbalance.SCHEMES
-    mode_hidden: bool  # always True
-    mode_settings: Mapping[str, Mapping[str, Any]]  # mode -> make_mode keyword settings
-    phases: tuple[Phase, ...]  # in the order they run
-    secondary: SecondarySettings
-    scoring: Scoring
-    analysis: AnalysisSettings
-    ui: UiSettings
-    input: InputSettings
-    text: str = field(repr=False)  # the file's exact text
-    sha256: str  # hex SHA-256 of ``text`` in UTF-8
-
-    def __post_init__(self) -> None:
-        if hashlib.sha256(self.text.encode("utf-8")).hexdigest() != self.sha256:
-            raise ValueError(f"{self.source}: sha256 does not match the protocol's text")
-
-    def phase(self, kind: str) -> Phase | None:
-        """The phase of ``kind``, or ``None`` if the protocol has none."""
-        if kind not in PHASE_KINDS:
-            raise ValueError(f"phase kind: must be one of {', '.join(PHASE_KINDS)}, got {kind!r}")
-        return next((p for p in self.phases if p.kind == kind), None)
-
-    @property
-    def main(self) -> MainTrials:
-        """The main-trials phase (every protocol has one)."""
-        return next(p for p in self.phases if isinstance(p, MainTrials))
-
-    @property
-    def name(self) -> str:
-        """The study's name, ``study.name``."""
-        return self.study.name
-
-    @property
-    def secondary_settings(self) -> SecondarySettings:
-        """The secondary task's settings with the main block size and baseline size."""
-        baseline = self.phase("baseline")
-        return replace(
-            self.secondary,
-            block_size=self.main.block_size,
-            baseline_size=baseline.questions if baseline else self.secondary.baseline_size,
-        )
-
-
-# -------------------------------------------------------------------------- reading
 
 
 def _raw(r: FieldReader, key: str, default: Any = None) -> Any:
@@ -683,6 +390,24 @@ def _modes(
     return names, scheme, hidden, settings
 
 
+def _study(r: FieldReader) -> StudyInfo:
+    study = StudyInfo(
+        name=_text(r, "name"),
+        title=r.string("title", ""),
+        description=r.string("description", ""),
+        participants=r.integer("participants", 18, minimum=1),
+        seed=r.integer("seed", 0, minimum=0),
+    )
+    r.finish()
+    return study
+
+
+def _scoring(r: FieldReader) -> Scoring:
+    scoring = Scoring(collision_penalty_s=r.number("collision_penalty_s", 60.0, non_negative=True))
+    r.finish()
+    return scoring
+
+
 def parse_protocol(
     text: str,
     source: str = "<protocol>",
@@ -718,24 +443,14 @@ def parse_protocol(
     if base is None:
         base = Path(source).parent if Path(source).is_file() else Path.cwd()
     r = FieldReader(source, data)
-    sr = r.sub("study")
-    study = StudyInfo(
-        name=_text(sr, "name"),
-        title=sr.string("title", ""),
-        description=sr.string("description", ""),
-        participants=sr.integer("participants", 18, minimum=1),
-        seed=sr.integer("seed", 0, minimum=0),
-    )
-    sr.finish()
+    study = _study(r.sub("study"))
     if "modes" not in data:
         raise r.fail("modes", "is required: a [modes] table with names = [...]")
     modes, scheme, hidden, settings = _modes(r.sub("modes"), known)
     scenarios = _Scenarios(base)
     phases = _phases(r, modes, scenarios)
     secondary = _secondary(r.sub("secondary"))
-    sc = r.sub("scoring")
-    scoring = Scoring(collision_penalty_s=sc.number("collision_penalty_s", 60.0, non_negative=True))
-    sc.finish()
+    scoring = _scoring(r.sub("scoring"))
     analysis = _analysis(r.sub("analysis"))
     ui = _ui(r.sub("ui"))
     inp = _input(r.sub("input"))

@@ -1,0 +1,78 @@
+"""Study protocols: a TOML file validated into frozen dataclasses that carry a whole study.
+
+Who takes part, which control modes are compared and how their order is counterbalanced,
+the phases of a session in order, the secondary task, scoring, analysis, and the
+participant's window, instructions and gamepad mapping (thesis sections 7.5, 7.6.1.1-
+7.6.1.3; spec section 7). :mod:`.types` holds the dataclasses, :mod:`.parse` reads and
+validates the file; storage keeps a protocol's ``text`` and ``sha256``.
+"""
+
+from study.engine.protocol.parse import load_protocol, parse_protocol, protocol_path
+from study.engine.protocol.types import (
+    AFTER_TRIAL_INSTRUMENTS,
+    AXES,
+    BUTTONS,
+    DEFAULT_AXES,
+    DEFAULT_BUTTONS,
+    DEFAULT_INVERT,
+    EXPERIENCE_INSTRUMENTS,
+    GATES,
+    METRICS,
+    ON_FAIL,
+    PHASE_KINDS,
+    POSTHOC,
+    PRACTICE_ORDERS,
+    ROUTE_POINTS,
+    TLX_WEIGHTS,
+    AfterTrial,
+    AnalysisSettings,
+    Baseline,
+    Briefing,
+    Debrief,
+    ExperiencePhase,
+    InputSettings,
+    MainTrials,
+    Phase,
+    Practice,
+    Protocol,
+    Scoring,
+    StudyInfo,
+    Training,
+    UiSettings,
+)
+
+__all__ = [
+    "AFTER_TRIAL_INSTRUMENTS",
+    "AXES",
+    "BUTTONS",
+    "DEFAULT_AXES",
+    "DEFAULT_BUTTONS",
+    "DEFAULT_INVERT",
+    "EXPERIENCE_INSTRUMENTS",
+    "GATES",
+    "METRICS",
+    "ON_FAIL",
+    "PHASE_KINDS",
+    "POSTHOC",
+    "PRACTICE_ORDERS",
+    "ROUTE_POINTS",
+    "TLX_WEIGHTS",
+    "AfterTrial",
+    "AnalysisSettings",
+    "Baseline",
+    "Briefing",
+    "Debrief",
+    "ExperiencePhase",
+    "InputSettings",
+    "MainTrials",
+    "Phase",
+    "Practice",
+    "Protocol",
+    "Scoring",
+    "StudyInfo",
+    "Training",
+    "UiSettings",
+    "load_protocol",
+    "parse_protocol",
+    "protocol_path",
+]

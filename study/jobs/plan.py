@@ -1,0 +1,98 @@
+"""Each participant's mode order under a protocol's counterbalancing scheme, and its
+balance check (``asa plan``; thesis section 7.6.1.3)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from study.engine.counterbalance import assign_indexed, balance
+from study.engine.protocol import load_protocol
+
+
+def participant_code(i: int, n: int) -> str:
+    """Pseudonymous code of participant ``i`` (from 0) of ``n``: ``P01``.. (at least 2 digits)."""
+    return f"P{i + 1:0{max(2, len(str(n)))}d}"
+
+
+def plan(
+    protocol: str | Path, *, participants: int | None = None, seed: int | None = None
+) -> dict[str, Any]:
+    """The assignment of mode orders to participants and its balance check, JSON-ready.
+
+    Parameters
+    ----------
+    protocol : str or Path
+        A shipped protocol's name or a protocol file.
+    participants : int, optional
+        Number of participants; default the protocol's ``study.participants``.
+    seed : int, optional
+        Seed of the ``random`` scheme; default the protocol's ``study.seed``.
+
+    Returns
+    -------
+    dict
+        ``protocol`` (name), ``source``, ``sha256``, ``scheme``, ``seed``, ``participants``
+        (list of ``{code, order_index, modes}``), ``balance`` (see
+        :func:`study.engine.counterbalance.balance`), ``balanced`` and ``warnings``.
+    """
+    p = load_protocol(protocol)
+    n = p.study.participants if participants is None else participants
+    if isinstance(n, bool) or not isinstance(n, int) or n < 1:
+        raise ValueError(f"participants: must be an integer >= 1, got {n!r}")
+    seed = p.study.seed if seed is None else seed
+    if seed < 0:
+        raise ValueError(f"seed: must be zero or positive, got {seed}")
+    rows = assign_indexed(p.modes, n, p.counterbalancing, rng=np.random.default_rng(seed))
+    check = balance([modes for _, modes in rows], scheme=p.counterbalancing)
+    return {
+        "protocol": p.name,
+        "source": p.source,
+        "sha256": p.sha256,
+        "scheme": p.counterbalancing,
+        "seed": seed,
+        "participants": [
+            {"code": participant_code(i, n), "order_index": index, "modes": list(modes)}
+            for i, (index, modes) in enumerate(rows)
+        ],
+        "balance": {k: v for k, v in check.items() if k not in ("balanced", "warnings")},
+        "balanced": check["balanced"],
+        "warnings": check["warnings"],
+    }
+
+
+def format_plan(result: dict[str, Any]) -> str:
+    """The plan as text: one line per participant, then the balance tables and warnings."""
+    b = result["balance"]
+    modes, k = b["modes"], len(b["modes"])
+    lines = [
+        f"protocol {result['protocol']} ({result['source']}), sha256 {result['sha256'][:12]}",
+        f"scheme {result['scheme']}, {b['n']} participants"
+        + (f", cycle {b['cycle']}" if b["cycle"] else f", seed {result['seed']}"),
+        "",
+        "participant  row  order",
+    ]
+    for row in result["participants"]:
+        lines.append(f"{row['code']:<11}  {row['order_index']:>3}  {' > '.join(row['modes'])}")
+    width = max(len(m) for m in modes)
+    lines += ["", "times in each position"]
+    lines.append(f"  {'mode':<{width}}  " + "  ".join(f"{p + 1:>4}" for p in range(k)))
+    for m in modes:
+        counts = b["position_counts"][m]
+        lines.append(f"  {m:<{width}}  " + "  ".join(f"{c:>4}" for c in counts))
+    lines += ["", "times one mode directly follows another (row, then column)"]
+    lines.append(f"  {'':<{width}}  " + "  ".join(f"{m:>{width}}" for m in modes))
+    for a in modes:
+        cells = ["-" if a == c else str(b["pair_counts"][f"{a}>{c}"]) for c in modes]
+        lines.append(f"  {a:<{width}}  " + "  ".join(f"{c:>{width}}" for c in cells))
+    lines += [
+        "",
+        f"position balanced: {'yes' if b['position_balanced'] else 'no'}; "
+        f"carry-over balanced: {'yes' if b['carryover_balanced'] else 'no'}; "
+        f"every order equally often: {'yes' if b['fully_counterbalanced'] else 'no'}",
+        f"balanced for {result['scheme']}: {'yes' if result['balanced'] else 'NO'}",
+    ]
+    lines += [f"warning: {w}" for w in result["warnings"]]
+    return "\n".join(lines)
