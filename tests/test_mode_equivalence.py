@@ -5,7 +5,7 @@
 in :func:`autonomy.safety.translation_distance`, inlined ``sinc`` in
 :func:`autonomy.safety.arc_poses`, remembered inflated radii, one ``ndtr`` pass in
 :func:`autonomy.reactive_bn.input_sector_probabilities`) on 24 fixed synthetic cluttered
-rooms (:func:`study.bench.autonomy.cluttered_segments`; if that generator's draws change,
+rooms (:func:`sim.testing.cluttered_segments`; if that generator's draws change,
 regenerate the rows with the pre-optimisation code, ``git show`` of the commit before it).
 The other tests compare each optimised function with the old expression on random
 inputs (the old expressions are kept here as references).
@@ -30,7 +30,7 @@ from autonomy.reactive_bn import (
 )
 from autonomy.safety import arc_poses, inflated_radius, safe_command, translation_distance
 from autonomy.types import RobotModel
-from study.bench.autonomy import cluttered_segments, synthetic_observation
+from sim.testing import cluttered_segments, synthetic_observation
 
 nan, inf = math.nan, math.inf
 
