@@ -1,276 +1,61 @@
-"""Scenarios: a room described as TOML, validated into frozen dataclasses.
+"""Scenarios: a room described as TOML, validated into frozen dataclasses
+(:mod:`sim.scene`; thesis Sec. 7.6.1.1).
 
-A scenario file (``sim/scenarios/*.toml``) holds the static geometry (walls,
-boxes, cylinders, tables), the start pose A, the dock pose B under a table, the
-object to inspect, the polygon that starts secondary-task questions, the robot's
-footprint and sensor mounts, and optional semantic settings and overrides.
-Semantic components are derived from the geometry (``sim.semantics``), so a
-new scene needs no hand annotation.
-
-Every field is checked on load; a bad one raises ``ValueError`` naming the
-file, the field (``walls[3].thickness``) and what is allowed, which the CLI
-turns into one line and exit status 2.
-
-File format (units: metres, degrees in files, radians in the dataclasses)::
-
-    name = "cluttered_room"
-    description = "..."
-    bounds = [[0.0, 0.0], [14.0, 10.0]]     # map extent [[x_min, y_min], [x_max, y_max]]
-
-    [start]                                  # pose A
-    x = 1.0
-    y = 1.0
-    yaw_deg = 0.0
-
-    [dock]                                   # pose B, under a table (optional)
-    x = 12.0
-    y = 8.0
-    yaw_deg = 90.0
-    table = "table"
-    tolerance_m = 0.15
-    tolerance_deg = 15.0
-
-    [[walls]]                                # a wall segment of given thickness
-    name = "outer_south"
-    from = [0.0, 0.0]
-    to = [14.0, 0.0]
-    thickness = 0.1                          # optional, default 0.1
-    height = 1.2                             # optional, default 1.2
-
-    [[boxes]]                                # free-standing obstacle
-    name = "crate"
-    centre = [3.0, 2.0]
-    size = [0.6, 0.4]
-    yaw_deg = 0.0
-    height = 0.8
-    colour = [0.55, 0.4, 0.25]
-
-    [[cylinders]]
-    name = "red_cylinder"
-    centre = [6.0, 4.0]
-    radius = 0.2
-    height = 1.0
-    colour = [0.9, 0.1, 0.1]
-
-    [[tables]]                               # four legs and a top the robot fits under
-    name = "table"
-    centre = [12.0, 8.0]
-    size = [1.2, 0.9]
-    height = 0.75
-    yaw_deg = 0.0
-    leg = 0.06
-
-    inspection_object = "red_cylinder"       # optional: name of a box or cylinder
-
-    [question_region]                        # optional
-    polygon = [[4, 3], [8, 3], [8, 6], [4, 6]]
-
-    [robot]                                  # all optional, defaults below
-    length = 0.6
-    width = 0.5
-    ...
-    [[robot.lasers]]
-    name = "front"
-    position = [0.3, 0.0]
-    yaw_deg = 0.0
-
-    [semantics]                              # optional
-    passage_width = [0.6, 1.1]               # clear widths counted as doorway or gap [m]
-    [[semantics.components]]                 # add a component or override a derived one
-    id = "doorway_0"
-    kind = "doorway"
-    centre = [5.0, 3.0]
-    ends = [[5.0, 2.6], [5.0, 3.4]]
-    [[semantics.remove]]                     # drop a derived component by id
-    id = "gap_3"
+A scenario file (``sim/scenarios/*.toml``, format in ``sim/scenarios/FORMAT.md``)
+holds the static geometry, the start pose A, the dock pose B under a table, the object
+to inspect, the polygon that starts secondary-task questions, the robot's footprint and
+sensor mounts, and optional semantic settings and overrides. Every field is checked
+on load; a bad one raises ``ValueError`` naming the file, the field
+(``walls[3].thickness``) and what is allowed.
 """
 
 from __future__ import annotations
 
 import math
 import tomllib
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from sim.fields import FieldReader
+from sim.scene import (
+    Box,
+    CameraSpec,
+    ComponentOverride,
+    Cylinder,
+    Dock,
+    LaserSpec,
+    RobotSpec,
+    Scenario,
+    SemanticSettings,
+    Table,
+)
 from sim.types import COMPONENT_KINDS, Pose2D
 
+__all__ = [
+    "CAMERA_DEFAULTS",
+    "DEFAULT_LASERS",
+    "LASER_DEFAULTS",
+    "ROBOT_DEFAULTS",
+    "SCENARIO_DIR",
+    "Box",
+    "CameraSpec",
+    "ComponentOverride",
+    "Cylinder",
+    "Dock",
+    "LaserSpec",
+    "RobotSpec",
+    "Scenario",
+    "SemanticSettings",
+    "Table",
+    "available_scenarios",
+    "load_scenario",
+    "parse_scenario",
+    "point_in_region",
+]
+
 SCENARIO_DIR = Path(__file__).resolve().parent / "scenarios"
-
-
-# --------------------------------------------------------------------------- types
-
-
-@dataclass(frozen=True, slots=True)
-class Box:
-    """An oriented box standing on the floor. Walls are boxes of kind ``wall``."""
-
-    name: str
-    kind: str  # "wall" or "obstacle"
-    centre: tuple[float, float]  # [m]
-    size: tuple[float, float]  # (along its own x, along its own y) [m]
-    yaw: float  # [rad]
-    height: float  # [m]
-    colour: tuple[float, float, float]  # RGB in [0, 1]
-
-    def corners(self) -> np.ndarray:
-        """Footprint corners in the map frame, counter-clockwise (4, 2) [m]."""
-        hx, hy = self.size[0] / 2, self.size[1] / 2
-        local = np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]])
-        return Pose2D(self.centre[0], self.centre[1], self.yaw).to_map_frame(local)
-
-
-@dataclass(frozen=True, slots=True)
-class Cylinder:
-    name: str
-    centre: tuple[float, float]  # [m]
-    radius: float  # [m]
-    height: float  # [m]
-    colour: tuple[float, float, float]
-
-
-@dataclass(frozen=True, slots=True)
-class Table:
-    """A table: four square legs at the corners and a top at ``height``."""
-
-    name: str
-    centre: tuple[float, float]  # [m]
-    size: tuple[float, float]  # top size [m]
-    yaw: float  # [rad]
-    height: float  # [m] underside of the top
-    leg: float  # [m] side of a square leg
-    top_thickness: float  # [m]
-    colour: tuple[float, float, float]
-
-    def leg_boxes(self) -> tuple[Box, ...]:
-        """The four legs as obstacle boxes (what a laser at robot height sees)."""
-        hx, hy = self.size[0] / 2 - self.leg / 2, self.size[1] / 2 - self.leg / 2
-        pose = Pose2D(self.centre[0], self.centre[1], self.yaw)
-        centres = pose.to_map_frame(np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]]))
-        return tuple(
-            Box(
-                name=f"{self.name}.leg{i}",
-                kind="obstacle",
-                centre=(float(c[0]), float(c[1])),
-                size=(self.leg, self.leg),
-                yaw=self.yaw,
-                height=self.height,
-                colour=self.colour,
-            )
-            for i, c in enumerate(centres)
-        )
-
-
-@dataclass(frozen=True, slots=True)
-class Dock:
-    pose: Pose2D  # pose B
-    table: str  # name of the table it is under ("" if none)
-    tolerance_m: float  # position tolerance for "docked" [m]
-    tolerance_rad: float  # heading tolerance [rad]
-
-
-@dataclass(frozen=True, slots=True)
-class LaserSpec:
-    name: str
-    position: tuple[float, float]  # [m] in the robot frame
-    yaw: float  # [rad] in the robot frame
-    fov: float  # [rad] total field of view
-    resolution: float  # [rad] between beams
-    max_range: float  # [m]
-    min_range: float  # [m]
-    height: float  # [m] above the floor
-    sigma: float  # [m] Gaussian range noise
-
-    @property
-    def n_beams(self) -> int:
-        return int(round(self.fov / self.resolution)) + 1
-
-
-@dataclass(frozen=True, slots=True)
-class CameraSpec:
-    position: tuple[float, float]  # [m] in the robot frame
-    height: float  # [m] above the floor
-    pitch: float  # [rad], negative looks down
-    fov: float  # [rad] vertical field of view
-    width: int  # [px]
-    height_px: int  # [px]
-    far: float  # [m]
-
-
-@dataclass(frozen=True, slots=True)
-class RobotSpec:
-    """A holonomic base with a rectangular footprint (spec section 1 and 7)."""
-
-    length: float  # [m] along the robot's x
-    width: float  # [m] along the robot's y
-    height: float  # [m]
-    mass: float  # [kg]
-    max_speed: float  # [m/s] translational limit (thesis 7.6.1.1: 1.0)
-    max_yaw_rate: float  # [rad/s] (thesis: 1.2)
-    max_accel: float  # [m/s^2]
-    max_yaw_accel: float  # [rad/s^2]
-    protective_margin: float  # [m] laser protective field beyond the footprint
-    pose_sigma: tuple[float, float]  # pose-estimate noise ([m], [rad])
-    imu_sigma: tuple[float, float]  # IMU noise (yaw rate [rad/s], acceleration [m/s^2])
-    lasers: tuple[LaserSpec, ...]
-    camera: CameraSpec
-
-    def footprint(self) -> np.ndarray:
-        """Footprint corners in the robot frame, counter-clockwise (4, 2) [m]."""
-        hx, hy = self.length / 2, self.width / 2
-        return np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]])
-
-
-@dataclass(frozen=True, slots=True)
-class ComponentOverride:
-    """A component added by hand, or replacing a derived one with the same id."""
-
-    id: str
-    kind: str
-    centre: tuple[float, float]
-    ends: tuple[tuple[float, float], ...]  # () or two points
-    points: tuple[tuple[float, float], ...]  # surface points, () for passages and dock
-
-
-@dataclass(frozen=True, slots=True)
-class SemanticSettings:
-    passage_width: tuple[float, float]  # [m] clear widths counted as doorway or gap
-    surface_spacing: float  # [m] between sampled surface points of objects and walls
-    components: tuple[ComponentOverride, ...]
-    remove: tuple[str, ...]  # ids of derived components to drop
-
-
-@dataclass(frozen=True, slots=True)
-class Scenario:
-    name: str
-    description: str
-    source: str  # the file it was loaded from ("" if built in code)
-    bounds: tuple[tuple[float, float], tuple[float, float]]  # ((x_min, y_min), (x_max, y_max))
-    start: Pose2D  # pose A
-    dock: Dock | None  # pose B
-    walls: tuple[Box, ...]
-    boxes: tuple[Box, ...]
-    cylinders: tuple[Cylinder, ...]
-    tables: tuple[Table, ...]
-    inspection_object: str  # name of a box or cylinder, "" if none
-    question_region: np.ndarray  # (k, 2) [m] polygon, (0, 2) if none
-    robot: RobotSpec
-    semantics: SemanticSettings
-
-    def obstacle_boxes(self) -> tuple[Box, ...]:
-        """Everything box-shaped a laser at robot height sees: walls, boxes, table legs."""
-        legs = tuple(b for t in self.tables for b in t.leg_boxes())
-        return self.walls + self.boxes + legs
-
-    def element(self, name: str) -> Box | Cylinder | Table:
-        """The scene element called ``name``; ``KeyError`` if there is none."""
-        for e in (*self.walls, *self.boxes, *self.cylinders, *self.tables):
-            if e.name == name:
-                return e
-        raise KeyError(name)
 
 
 # ------------------------------------------------------------------------ defaults
@@ -506,14 +291,10 @@ def _inside(polygon: np.ndarray, x: float, y: float) -> bool:
     return inside
 
 
-def parse_scenario(data: dict[str, Any], source: str = "<scenario>") -> Scenario:
-    """Validate a scenario read from TOML into a :class:`Scenario`.
-
-    Raises ``ValueError`` naming ``source`` and the offending field.
-    """
-    r = FieldReader(source, data)
-    name = r.string("name")
-    description = r.string("description", "")
+def _elements(
+    r: FieldReader,
+) -> tuple[RobotSpec, tuple[Box, ...], tuple[Box, ...], tuple[Cylinder, ...], tuple[Table, ...]]:
+    """The robot, walls, boxes, cylinders and tables; at least one element, unique names."""
     robot = _robot(r.sub("robot"))
     walls = tuple(_wall(w) for w in r.tables("walls"))
     boxes = tuple(_box(b) for b in r.tables("boxes"))
@@ -528,7 +309,17 @@ def parse_scenario(data: dict[str, Any], source: str = "<scenario>") -> Scenario
         if n in seen:
             raise r.fail("name", f"element names must be unique; {n!r} appears twice")
         seen.add(n)
+    return robot, walls, boxes, cylinders, tables
 
+
+def _bounds(
+    r: FieldReader,
+    walls: tuple[Box, ...],
+    boxes: tuple[Box, ...],
+    cylinders: tuple[Cylinder, ...],
+    tables: tuple[Table, ...],
+) -> tuple[np.ndarray, np.ndarray]:
+    """The map extent (lo (2,), hi (2,)) [m]: ``bounds``, or the geometry with a margin."""
     bounds_pts = r.points("bounds", minimum=2, default=[])
     if len(bounds_pts) == 0:  # derive from the geometry with a margin
         corners = [
@@ -544,35 +335,52 @@ def parse_scenario(data: dict[str, Any], source: str = "<scenario>") -> Scenario
             for c in cylinders
         ]
         allc = np.vstack(corners)
-        lo, hi = allc.min(axis=0) - 0.5, allc.max(axis=0) + 0.5
-    else:
-        if len(bounds_pts) != 2 or np.any(bounds_pts[1] <= bounds_pts[0]):
-            raise r.fail("bounds", "must be [[x_min, y_min], [x_max, y_max]] with max > min")
-        lo, hi = bounds_pts[0], bounds_pts[1]
+        return allc.min(axis=0) - 0.5, allc.max(axis=0) + 0.5
+    if len(bounds_pts) != 2 or np.any(bounds_pts[1] <= bounds_pts[0]):
+        raise r.fail("bounds", "must be [[x_min, y_min], [x_max, y_max]] with max > min")
+    return bounds_pts[0], bounds_pts[1]
+
+
+def _dock(r: FieldReader, source: str, tables: tuple[Table, ...]) -> Dock | None:
+    dock_table = r.table("dock")
+    if dock_table is None:
+        return None
+    dr = FieldReader(source, dock_table, "dock.")
+    table_names = [t.name for t in tables]
+    dock = Dock(
+        pose=_pose(dr),
+        table=dr.string("table", table_names[0] if table_names else ""),
+        tolerance_m=dr.number("tolerance_m", 0.15, positive=True),
+        tolerance_rad=math.radians(dr.number("tolerance_deg", 15.0, positive=True)),
+    )
+    if dock.table and dock.table not in table_names:
+        raise dr.fail(
+            "table",
+            f"must name a table of this scenario ({', '.join(table_names) or 'none'}), "
+            f"got {dock.table!r}",
+        )
+    dr.finish()
+    return dock
+
+
+def parse_scenario(data: dict[str, Any], source: str = "<scenario>") -> Scenario:
+    """Validate a scenario read from TOML into a :class:`Scenario`.
+
+    Raises ``ValueError`` naming ``source`` and the offending field.
+
+    The file format is described in ``sim/scenarios/FORMAT.md``.
+    """
+    r = FieldReader(source, data)
+    name = r.string("name")
+    description = r.string("description", "")
+    robot, walls, boxes, cylinders, tables = _elements(r)
+    lo, hi = _bounds(r, walls, boxes, cylinders, tables)
     bounds = ((float(lo[0]), float(lo[1])), (float(hi[0]), float(hi[1])))
 
     start_r = r.sub("start")
     start = _pose(start_r)
     start_r.finish()
-
-    dock = None
-    dock_table = r.table("dock")
-    if dock_table is not None:
-        dr = FieldReader(source, dock_table, "dock.")
-        table_names = [t.name for t in tables]
-        dock = Dock(
-            pose=_pose(dr),
-            table=dr.string("table", table_names[0] if table_names else ""),
-            tolerance_m=dr.number("tolerance_m", 0.15, positive=True),
-            tolerance_rad=math.radians(dr.number("tolerance_deg", 15.0, positive=True)),
-        )
-        if dock.table and dock.table not in table_names:
-            raise dr.fail(
-                "table",
-                f"must name a table of this scenario ({', '.join(table_names) or 'none'}), "
-                f"got {dock.table!r}",
-            )
-        dr.finish()
+    dock = _dock(r, source, tables)
 
     inspection = r.string("inspection_object", "")
     inspectable = [e.name for e in (*boxes, *cylinders)]
@@ -595,7 +403,7 @@ def parse_scenario(data: dict[str, Any], source: str = "<scenario>") -> Scenario
                 f"{source}: field '{label}': pose ({pose.x}, {pose.y}) lies outside "
                 f"the bounds {list(map(list, bounds))}"
             )
-    scenario = Scenario(
+    return Scenario(
         name=name,
         description=description,
         source=source,
@@ -611,7 +419,6 @@ def parse_scenario(data: dict[str, Any], source: str = "<scenario>") -> Scenario
         robot=robot,
         semantics=semantics,
     )
-    return scenario
 
 
 def load_scenario(name_or_path: str | Path) -> Scenario:

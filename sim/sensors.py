@@ -1,34 +1,16 @@
-"""The robot's 2D laser scanners as an exact ray caster over the scene's cross-section.
+"""The robot's 2D laser scanners as an exact ray caster over the scene's cross-section
+(thesis Sec. 7.6.1.1; spec section 7).
 
 Every element of a scenario is a vertical extrusion standing on the floor (walls,
 boxes, table legs, cylinders) or a slab at a fixed height (a table top):
 :func:`scene_solids` lists them as :class:`Solid` boxes and cylinders, the one
 description of the scene's shape that the physics (``sim.world``) builds its bodies
-from too. What a horizontal laser at height ``h`` can hit is then a 2D
-cross-section: convex outlines whose edges have outward normals, and circles.
-:func:`cross_section` cuts the scene once; :func:`cast` computes the range of
-every beam of one or more scanners in one vectorised pass:
-
-1. keep the (sensor, edge) pairs where the edge faces the sensor
-   (``n . (o - a) > 0``); with closed convex outlines the back faces are always
-   hidden behind the front ones;
-2. find the beams inside each edge's (and circle's) angular interval, wrapping
-   around 2 pi, and expand them into (element, beam) pairs;
-3. intersect each pair exactly (ray against the edge's line, or against the circle)
-   and keep the nearest hit per beam (``np.minimum.at``).
-
-Why not pybullet's ``rayTestBatch``: Bullet runs its narrow phase on every shape
-whose bounding box the whole ray crosses, and in the cluttered room the two
-271-beam scans cost about 3.3 ms per tick (one core), more than the whole budget
-of a 500 Hz simulation; this caster takes about 0.17 ms. The world keeps
-``rayTestBatch`` as a selectable backend (``WorldSettings.laser_backend``), and the
-tests check the two against each other (Bullet's ranges come out up to about a
-centimetre short) and this one against a brute-force intersection.
-
-Spec silences decided here: a sensor whose origin lies inside an obstacle (the robot
-pressed into a wall with the scanner at its edge) sees through that obstacle's back
-faces, as Bullet's ray test does; an element whose height range does not contain the
-laser's height (a table top above it, a box lower than it) is invisible to it."""
+from too. What a horizontal laser at height ``h`` can hit is a 2D cross-section
+(:func:`cross_section`): convex outlines whose edges have outward normals, and
+circles; :func:`cast` computes the range of every beam of one or more scanners in one
+vectorised pass. pybullet's ``rayTestBatch`` stays a selectable backend
+(``WorldSettings.laser_backend``).
+"""
 
 from __future__ import annotations
 
@@ -184,8 +166,9 @@ def cast(
     beam_angles = (first[:, None] + step * np.arange(n)).ravel()
     cos_b, sin_b = np.cos(beam_angles), np.sin(beam_angles)
 
-    # (sensor, edge) pairs with the edge facing the sensor, (sensor, circle) pairs with
-    # the circle not containing the sensor nor out of its range.
+    # (sensor, edge) pairs with the edge facing the sensor (closed convex outlines: the
+    # back faces are hidden behind the front ones), (sensor, circle) pairs with the
+    # circle not containing the sensor nor out of its range.
     rel_a = section.edge_a - origins[:, None, :]  # (m, s, 2)
     offset = np.einsum("sj,msj->ms", section.normals, rel_a)  # n . (a - o)
     le, se = np.nonzero(offset < 0.0)

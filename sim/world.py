@@ -1,71 +1,13 @@
 """The simulated world: a pybullet scene built from a scenario, a holonomic robot in it,
 its sensors and its collisions (thesis Sec. 7.6.1.1; spec section 7).
 
-Frames
-    The map frame is the scenario's (x right, y up, yaw counter-clockwise from +x,
-    z up from the floor). The robot frame has x forward, y left, origin at the
-    centre of the footprint. Commands and velocities are robot-frame
-    ``(v_x [m/s], v_y [m/s], omega [rad/s])``.
-
-Robot model
-    A fixed-base pybullet multibody with a prismatic joint along map x, a
-    prismatic joint along map y and a revolute joint about z (two massless dummy
-    links), the last link the robot's box (``length x width x height``, ``mass``).
-    The joint positions *are* the true pose. Each physics substep the held
-    robot-frame command is turned into map-frame joint velocities with the heading
-    halfway through the substep, so a command is followed in the robot's own frame
-    while it turns (a constant command drives a circular arc). The command is first
-    clipped to ``max_speed`` (norm of (v_x, v_y)) and ``max_yaw_rate`` (thesis
-    7.6.1.1: 1.0 m/s, 1.2 rad/s); the velocity set-point then follows it rate
-    limited, ``max_accel`` on the translational vector and ``max_yaw_accel`` on
-    omega. VELOCITY_CONTROL motors with a finite force (``motor_force_factor`` times
-    what the acceleration limit needs) drive the joints, so an obstacle pushes back
-    and the box cannot pass through it; link damping and joint damping are zero,
-    gravity is irrelevant (no vertical freedom) and off.
-    The floor is visual only, so it adds no friction. The static scene is built
-    from primitive shapes (boxes, upright cylinders), grouped into compound bodies
-    of at most 16 so that the physics step does not pay for every element.
-
-Contacts
-    A collision episode starts at the first physics substep at which the robot's
-    box touches any scene element (a contact point closer than
-    ``contact_tolerance_m``) and ends once it has touched nothing for
-    ``contact_debounce_s``; a graze that flickers within the debounce, a scrape
-    along a wall or a push into a corner is one episode. The episode keeps the time,
-    the map-frame point on the obstacle and the name of the element touched first,
-    the element of the touched compound nearest that point (table parts are
-    ``table.leg0``..``table.leg3`` and ``table.top``);
-    ``t_end`` is the last time the robot touched, filled in once the debounce has
-    passed. Counting contact with anything, not per element, is a decision of this
-    module: one crash into a corner costs one collision penalty, not two.
-
-Sensors (noise from the world's own generator, seeded by ``seed``; same seed, same
-commands and the same calls give an identical run)
-    * Lasers, per ``scenario.robot.lasers``: beams evenly spaced over the field of
-      view at the mount pose, cast horizontally at the laser's height from the true
-      pose, the robot itself never seen; range + N(0, sigma^2), clipped to
-      [min_range, max_range]; exactly ``max_range`` where nothing is hit. The
-      default caster is exact 2D geometry (:mod:`sim.sensors`); pybullet's
-      ``rayTestBatch`` is available as ``laser_backend="pybullet"``.
-    * Pose estimate: true pose + N(0, diag(s_xy^2, s_xy^2, s_yaw^2)),
-      ``robot.pose_sigma = (s_xy, s_yaw)``. It stands for a localisation system on
-      the given, complete map (the thesis localised the robot on a prebuilt SLAM
-      map, Sec. 7.1, the same map the participants saw, Sec. 7.6.1.1); the noise is
-      independent per tick, not a drift.
-    * IMU: yaw rate + N(0, s_g^2) and robot-frame linear acceleration + N(0, s_a^2)
-      per axis, ``robot.imu_sigma = (s_g, s_a)``; the acceleration is the finite
-      difference of the true map-frame velocity over the last tick, rotated into
-      the robot frame (an accelerometer's reading without gravity).
-    * Velocity estimate: true (v_x, v_y) + N(0, ``velocity_sigma``^2) per axis, as
-      from wheel odometry, and omega equal to the IMU's noisy yaw rate.
-    * Semantic components: derived once from the scenario (``sim.semantics``), put
-      into the robot frame with the *estimated* pose, when first read
-      (``sim.semantics.RobotFrameComponents``: most modes never read them).
-    * Camera: only on :meth:`World.camera_image`, a pinhole at ``robot.camera``
-      rendered by pybullet's ER_TINY_RENDERER from the true pose.
-
-Timing: one control tick is ``dt`` (20 Hz); the physics runs
-``round(dt * physics_hz)`` substeps of equal length per tick.
+The map frame is the scenario's (x right, y up, yaw counter-clockwise from +x, z up
+from the floor); the robot frame has x forward, y left, origin at the centre of the
+footprint. Commands and velocities are robot-frame ``(v_x [m/s], v_y [m/s], omega
+[rad/s])``. One control tick is ``dt`` (20 Hz); the physics runs
+``round(dt * physics_hz)`` substeps of equal length per tick. Sensor noise comes from
+the world's own generator, seeded by ``seed``: the same seed, commands and calls give
+an identical run.
 """
 
 from __future__ import annotations
@@ -78,9 +20,11 @@ from typing import Any
 import numpy as np
 
 from sim._pybullet import pybullet as p
-from sim.scenario import LaserSpec, Scenario
+from sim.bodies import JOINTS, SCENE_GROUP, build_robot, build_scene
+from sim.lasers import Fans, laser_beams, laser_fans, laser_rays
+from sim.scenario import Scenario
 from sim.semantics import RobotFrameComponents, derive_components, in_robot_frame
-from sim.sensors import CrossSection, Solid, cast, cross_section, scene_solids
+from sim.sensors import cast
 from sim.types import (
     Contact,
     ImuReading,
@@ -93,17 +37,7 @@ from sim.types import (
 
 LASER_BACKENDS = ("analytic", "pybullet")
 
-# Collision filter groups: the scene collides with the robot, the robot only with the
-# scene; pybullet's ray test (group 1 by default, mask _SCENE_GROUP) then hits the scene
-# but not the robot. The scene does not collide with itself: its static bodies would
-# otherwise be checked against each other at every physics substep (walls meet at the
-# corners), which made a substep of the cluttered room 2.7x dearer (14.5 vs 5.4 us).
-_RAY_GROUP, _ROBOT_GROUP, _SCENE_GROUP = 1, 2, 4
-_JOINTS = [0, 1, 2]  # the robot's prismatic x, prismatic y and revolute yaw joints
-_FLOOR_RGBA = [0.78, 0.78, 0.75, 1.0]
-_ROBOT_RGBA = [0.2, 0.3, 0.55, 1.0]
 _CAMERA_NEAR_M = 0.05
-_COMPOUND_MAX = 16  # shapes per pybullet compound (more: cut silently, or a crash)
 
 
 @dataclass(frozen=True, slots=True)
@@ -136,71 +70,6 @@ class WorldSettings:
             )
 
 
-@dataclass(frozen=True, slots=True)
-class _Beams:
-    """One laser's beam directions, precomputed once."""
-
-    angles: np.ndarray  # (n,) [rad] beam directions in the robot frame, read-only
-    origin: np.ndarray  # (2,) [m] mount position in the robot frame, read-only
-    step: float  # [rad] between beams
-
-
-@dataclass(frozen=True, slots=True)
-class _Fans:
-    """Lasers with the same height, beam layout and range: cast in one pass."""
-
-    members: tuple[int, ...]  # indices into robot.lasers
-    positions: np.ndarray  # (m, 2) [m] mounts in the robot frame
-    firsts: np.ndarray  # (m,) [rad] robot-frame direction of each one's beam 0
-    step: float  # [rad] between beams
-    n: int  # beams per laser
-    height: float  # [m] above the floor
-    max_range: float  # [m]
-    section: CrossSection  # the scene at this height
-
-
-@dataclass(frozen=True, slots=True)
-class _Rays:
-    """Every beam of every laser, concatenated in laser order: per-beam constants."""
-
-    start: tuple[int, ...]  # where each laser's beams begin; last entry = number of beams
-    x0: np.ndarray  # (n,) [m] mount x in the robot frame
-    y0: np.ndarray  # (n,) [m] mount y in the robot frame
-    cos: np.ndarray  # (n,) cos of the beam direction in the robot frame
-    sin: np.ndarray  # (n,) sin of the beam direction in the robot frame
-    sigma: np.ndarray  # (n,) [m] range noise
-    min_range: np.ndarray  # (n,) [m]
-    max_range: np.ndarray  # (n,) [m]
-
-
-def _rays(lasers: tuple[LaserSpec, ...], beams: tuple[_Beams, ...]) -> _Rays:
-    counts = [len(b.angles) for b in beams]
-
-    def per_beam(values: list[float]) -> np.ndarray:
-        return np.repeat(np.array(values, dtype=float), counts)
-
-    return _Rays(
-        start=tuple(np.concatenate(([0], np.cumsum(counts))).tolist()),
-        x0=per_beam([spec.position[0] for spec in lasers]),
-        y0=per_beam([spec.position[1] for spec in lasers]),
-        cos=np.cos(np.concatenate([b.angles for b in beams])),
-        sin=np.sin(np.concatenate([b.angles for b in beams])),
-        sigma=per_beam([spec.sigma for spec in lasers]),
-        min_range=per_beam([spec.min_range for spec in lasers]),
-        max_range=per_beam([spec.max_range for spec in lasers]),
-    )
-
-
-def _beams(spec: LaserSpec) -> _Beams:
-    """Beams evenly spread over the field of view, centred on the mount's heading."""
-    n = spec.n_beams
-    step = spec.fov / (n - 1) if n > 1 else spec.resolution
-    angles = spec.yaw + (step * np.arange(n) - spec.fov / 2 if n > 1 else np.zeros(1))
-    origin = np.array(spec.position, dtype=float)
-    angles.flags.writeable = origin.flags.writeable = False
-    return _Beams(angles, origin, step)
-
-
 def clip_command(v: np.ndarray, max_speed: float, max_yaw_rate: float) -> np.ndarray:
     """Clip a robot-frame command (3,) to the speed limits.
 
@@ -213,10 +82,6 @@ def clip_command(v: np.ndarray, max_speed: float, max_yaw_rate: float) -> np.nda
         out[:2] *= max_speed / speed
     out[2] = min(max(out[2], -max_yaw_rate), max_yaw_rate)
     return out
-
-
-def _quat_yaw(yaw: float) -> list[float]:
-    return [0.0, 0.0, math.sin(yaw / 2.0), math.cos(yaw / 2.0)]
 
 
 class World:
@@ -258,134 +123,24 @@ class World:
         p.setPhysicsEngineParameter(
             fixedTimeStep=self._h, numSubSteps=0, deterministicOverlappingPairs=1, **self._pb
         )
-        self._groups: dict[int, tuple[Solid, ...]] = {}  # static body -> its solids
-        self._build_scene()
-        self._robot = self._build_robot()
+        self._groups = build_scene(scenario, self._pb)  # static body -> its solids
+        self._robot = build_robot(scenario, self._pb)
         robot = scenario.robot
         yaw_inertia = robot.mass * (robot.length**2 + robot.width**2) / 12.0  # box about z
         force = settings.motor_force_factor * robot.mass * robot.max_accel
         torque = settings.motor_force_factor * yaw_inertia * robot.max_yaw_accel
         self._forces = [force, force, torque]
-        self._beams = tuple(_beams(spec) for spec in robot.lasers)
-        self._fans = self._group_lasers()
-        self._rays = _rays(robot.lasers, self._beams)
+        self._beams = tuple(laser_beams(spec) for spec in robot.lasers)
+        self._fans = laser_fans(scenario, self._beams)
+        self._rays = laser_rays(robot.lasers, self._beams)
         self._ranges_key: tuple[float, float, float] | None = None  # pose of self._ranges
         self._ranges = np.empty(0)
         self._reset_state(scenario.start)
 
-    # ------------------------------------------------------------------ building
-
-    def _build_scene(self) -> None:
-        """Static bodies of at most 16 solids each (pybullet's limit for one compound).
-
-        Bullet revisits every body at every physics step, moving or not: one body per
-        element made the physics step twice as slow in the cluttered room (57 vs 27 us).
-        """
-        (x0, y0), (x1, y1) = self.scenario.bounds
-        floor = p.createVisualShape(
-            p.GEOM_BOX,
-            halfExtents=[(x1 - x0) / 2 + 1.0, (y1 - y0) / 2 + 1.0, 0.005],
-            rgbaColor=_FLOOR_RGBA,
-            **self._pb,
-        )
-        centre = [(x0 + x1) / 2, (y0 + y1) / 2, -0.005]
-        p.createMultiBody(0.0, -1, floor, centre, useMaximalCoordinates=True, **self._pb)
-        solids = scene_solids(self.scenario)
-        for i in range(0, len(solids), _COMPOUND_MAX):
-            group = solids[i : i + _COMPOUND_MAX]
-            shape = {
-                "shapeTypes": [p.GEOM_CYLINDER if e.radius else p.GEOM_BOX for e in group],
-                "halfExtents": [
-                    [e.size[0] / 2, e.size[1] / 2, (e.z[1] - e.z[0]) / 2] for e in group
-                ],
-                "radii": [e.radius for e in group],
-                "lengths": [e.z[1] - e.z[0] for e in group],
-            }
-            positions = [[*e.centre, (e.z[0] + e.z[1]) / 2] for e in group]
-            orientations = [_quat_yaw(e.yaw) for e in group]
-            col = p.createCollisionShapeArray(
-                **shape,
-                collisionFramePositions=positions,
-                collisionFrameOrientations=orientations,
-                **self._pb,
-            )
-            vis = p.createVisualShapeArray(
-                **shape,
-                rgbaColors=[[*e.colour, 1.0] for e in group],
-                visualFramePositions=positions,
-                visualFrameOrientations=orientations,
-                **self._pb,
-            )
-            # maximal coordinates: a static rigid body, skipped by the solver
-            body = p.createMultiBody(
-                0.0, col, vis, [0.0, 0.0, 0.0], useMaximalCoordinates=True, **self._pb
-            )
-            p.setCollisionFilterGroupMask(
-                body, -1, _SCENE_GROUP, _RAY_GROUP | _ROBOT_GROUP, **self._pb
-            )
-            self._groups[body] = group
-
-    def _build_robot(self) -> int:
-        r = self.scenario.robot
-        half = [r.length / 2, r.width / 2, r.height / 2]
-        col = p.createCollisionShape(p.GEOM_BOX, halfExtents=half, **self._pb)
-        vis = p.createVisualShape(p.GEOM_BOX, halfExtents=half, rgbaColor=_ROBOT_RGBA, **self._pb)
-        ident = [0.0, 0.0, 0.0, 1.0]
-        body = p.createMultiBody(
-            0.0,
-            -1,
-            -1,
-            [0.0, 0.0, 0.0],
-            ident,
-            linkMasses=[0.0, 0.0, r.mass],
-            linkCollisionShapeIndices=[-1, -1, col],
-            linkVisualShapeIndices=[-1, -1, vis],
-            # the box floats 1 mm above the (visual) floor: no contact with it
-            linkPositions=[[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, r.height / 2 + 0.001]],
-            linkOrientations=[ident] * 3,
-            linkInertialFramePositions=[[0.0, 0.0, 0.0]] * 3,
-            linkInertialFrameOrientations=[ident] * 3,
-            linkParentIndices=[0, 1, 2],
-            linkJointTypes=[p.JOINT_PRISMATIC, p.JOINT_PRISMATIC, p.JOINT_REVOLUTE],
-            linkJointAxis=[[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
-            **self._pb,
-        )
-        for j in _JOINTS:
-            p.changeDynamics(
-                body, j, linearDamping=0.0, angularDamping=0.0, jointDamping=0.0, **self._pb
-            )
-            p.setCollisionFilterGroupMask(body, j, _ROBOT_GROUP, _SCENE_GROUP, **self._pb)
-        return body
-
-    def _group_lasers(self) -> tuple[_Fans, ...]:
-        lasers = self.scenario.robot.lasers
-        groups: dict[tuple, list[int]] = {}
-        for i, (spec, beams) in enumerate(zip(lasers, self._beams, strict=True)):
-            key = (spec.height, beams.step, len(beams.angles), spec.max_range)
-            groups.setdefault(key, []).append(i)
-        sections: dict[float, CrossSection] = {}
-        fans = []
-        for (height, step, n, max_range), members in groups.items():
-            if height not in sections:
-                sections[height] = cross_section(self.scenario, height)
-            fans.append(
-                _Fans(
-                    members=tuple(members),
-                    positions=np.array([lasers[i].position for i in members]),
-                    firsts=np.array([self._beams[i].angles[0] for i in members]),
-                    step=step,
-                    n=n,
-                    height=height,
-                    max_range=max_range,
-                    section=sections[height],
-                )
-            )
-        return tuple(fans)
-
     # ------------------------------------------------------------------ state
 
     def _reset_state(self, pose: Pose2D) -> None:
-        for j, q in zip(_JOINTS, (pose.x, pose.y, pose.yaw), strict=True):
+        for j, q in zip(JOINTS, (pose.x, pose.y, pose.yaw), strict=True):
             p.resetJointState(self._robot, j, q, 0.0, **self._pb)
         self._command = (0.0, 0.0, 0.0)  # robot frame, clipped
         self._setpoint = (0.0, 0.0, 0.0)  # motor targets: map-frame (v_x, v_y, omega)
@@ -400,7 +155,7 @@ class World:
     def _read_state(self, states: Any | None = None) -> None:
         """Pose and velocity from pybullet's joint ``states`` of the robot (read if None)."""
         if states is None:
-            states = p.getJointStates(self._robot, _JOINTS, **self._pb)
+            states = p.getJointStates(self._robot, JOINTS, **self._pb)
         self._q = (states[0][0], states[1][0], states[2][0])
         self._qd = (states[0][1], states[1][1], states[2][1])
 
@@ -462,9 +217,15 @@ class World:
     def step(self) -> list[Contact]:
         """Advance one control tick ``dt``; return the collision episodes that started in it.
 
-        Speed (some 12 physics substeps a tick): the pybullet calls are bound once per
-        tick and a substep without any contact point skips the contact bookkeeping; the
-        calls, their arguments and the arithmetic are those of the plain loop.
+        The joint positions are the true pose. The command, clipped to ``max_speed`` and
+        ``max_yaw_rate`` (thesis 7.6.1.1: 1.0 m/s, 1.2 rad/s), is followed by a velocity
+        set-point rate limited by ``max_accel`` (translational vector) and
+        ``max_yaw_accel``; each substep turns it into map-frame joint velocities with the
+        heading halfway through the substep, so a constant command drives a circular
+        arc. VELOCITY_CONTROL motors with a finite force (``motor_force_factor`` times
+        what the acceleration limit needs) drive the joints, so an obstacle pushes back.
+        The pybullet calls are bound once per tick and a substep without any contact
+        point skips the contact bookkeeping.
         """
         r = self.scenario.robot
         h = self._h
@@ -474,7 +235,7 @@ class World:
         v_before = np.array(self._qd[:2])
         started: list[Contact] = []
         first_substep = self._ticks * self._substeps
-        robot, joints, forces, cid = self._robot, _JOINTS, self._forces, self._client
+        robot, joints, forces, cid = self._robot, JOINTS, self._forces, self._client
         control, step_simulation = p.setJointMotorControlArray, p.stepSimulation
         joint_states, contact_points = p.getJointStates, p.getContactPoints
         velocity_control = p.VELOCITY_CONTROL
@@ -513,7 +274,14 @@ class World:
 
     def _track_contacts(self, t: float, started: list[Contact], points: Any | None = None) -> None:
         """Open or close the collision episode after the physics substep ending at ``t``
-        (``points``: pybullet's contact points of the robot then, read here if None)."""
+        (``points``: pybullet's contact points of the robot then, read here if None).
+
+        An episode starts at the first substep at which the robot's box touches any scene
+        element (a contact point closer than ``contact_tolerance_m``) and ends once it
+        has touched nothing for ``contact_debounce_s``. It keeps the time, the map-frame
+        point on the obstacle and the element touched first (table parts are
+        ``table.leg0``..``table.leg3`` and ``table.top``); ``t_end`` is the last touch.
+        """
         tol = self.settings.contact_tolerance_m
         if points is None:
             points = p.getContactPoints(bodyA=self._robot, **self._pb)
@@ -562,7 +330,7 @@ class World:
         return RobotFrameComponents(self._map_components, pose)
 
     def _true_ranges(self, pose: Pose2D) -> np.ndarray:
-        """Noise-free ranges [m] of all beams from ``pose`` (in :class:`_Rays` order),
+        """Noise-free ranges [m] of all beams from ``pose`` (in :class:`sim.lasers.Rays` order),
         max_range where nothing is hit; read-only.
 
         The scene is static, so the last result is reused while the pose is exactly the
@@ -585,7 +353,7 @@ class World:
         self._ranges_key, self._ranges = key, out
         return out
 
-    def _ray_test(self, fan: _Fans, origins: np.ndarray, firsts: np.ndarray) -> np.ndarray:
+    def _ray_test(self, fan: Fans, origins: np.ndarray, firsts: np.ndarray) -> np.ndarray:
         """pybullet's rayTestBatch for the fans of ``fan`` (m, n) [m]."""
         angles = (firsts[:, None] + fan.step * np.arange(fan.n)).ravel()
         start = np.column_stack(
@@ -596,7 +364,7 @@ class World:
             start.tolist(),
             (start + fan.max_range * direction).tolist(),
             numThreads=1,
-            collisionFilterMask=_SCENE_GROUP,  # the scene, not the robot
+            collisionFilterMask=SCENE_GROUP,  # the scene, not the robot
             **self._pb,
         )
         fraction = np.array([hit[2] if hit[0] >= 0 else 1.0 for hit in hits])
@@ -604,6 +372,16 @@ class World:
 
     def sense(self) -> Observation:
         """What the robot knows now (draws this tick's noise).
+
+        Lasers: beams cast horizontally at the laser's height from the true pose (the
+        robot never seen), range + N(0, sigma^2) clipped to [min_range, max_range],
+        exactly ``max_range`` where nothing is hit. Pose estimate: true pose +
+        N(0, diag(s_xy^2, s_xy^2, s_yaw^2)), ``robot.pose_sigma``. IMU: yaw rate +
+        N(0, s_g^2) and the robot-frame finite-difference acceleration of the last tick +
+        N(0, s_a^2) per axis, ``robot.imu_sigma``. Velocity: true (v_x, v_y) +
+        N(0, ``velocity_sigma``^2), omega the IMU's noisy yaw rate. Semantic components:
+        in the robot frame of the estimated pose, computed when first read. The camera
+        is rendered only by :meth:`camera_image`.
 
         Returns
         -------

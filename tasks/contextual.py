@@ -1,32 +1,14 @@
 """Contextual task types: what a driver does with a semantic component (thesis Sec. 6.1,
 7.4.1-7.4.2; spec section 3).
 
-Six task types, each about one kind of semantic component (``sim.types.COMPONENT_KINDS``):
-
-===================  ===========  ==========================================
-task type            targets      direction
-===================  ===========  ==========================================
-``doorway_crossing``  doorway     ``""`` (the side the robot starts on decides)
-``gap_crossing``      gap         ``""`` (likewise)
-``object_inspection`` object      ``"cw"`` or ``"ccw"`` around the object
-``object_bypass``     object      ``"left"``/``"right"``: the side of the robot
-                                  the object is passed on
-``wall_following``    wall        ``"left"``/``"right"``: the side of the robot
-                                  the wall is on
-``robot_docking``     dock        ``""``
-===================  ===========  ==========================================
-
-The thesis demonstrated four of them (:data:`DEMONSTRATED`, Sec. 7.4.2) and tested
-whether the learnt model generalises to the other two.
-
-Decisions where the spec is silent:
-
-- Default demonstration scene per type (:data:`DEFAULT_SCENES`): the ``demo_*`` scene of
-  that name; docking uses ``demo_docking``; gap crossing uses ``cluttered_room``, the
-  only shipped scene with gaps (the bypass scene's objects stand too far apart to form
-  passages), so gap crossings are demonstrated where the study is run.
-- ``"cw"``/``"ccw"`` are seen from above (map frame, z up): counter-clockwise is the
-  robot's position angle about the object increasing.
+Six task types, each about one kind of semantic component
+(``sim.types.COMPONENT_KINDS``): ``doorway_crossing`` and ``gap_crossing`` (direction
+``""``: the side the robot starts on decides), ``object_inspection`` (``"cw"`` or
+``"ccw"`` around the object, seen from above: ccw is the robot's position angle about
+the object increasing), ``object_bypass`` and ``wall_following`` (``"left"``/``"right"``:
+the side of the robot the object is passed on, or the wall is on) and
+``robot_docking`` (``""``). The thesis demonstrated four of them (:data:`DEMONSTRATED`,
+Sec. 7.4.2) and tested whether the learnt model generalises to the other two.
 """
 
 from __future__ import annotations
@@ -71,7 +53,8 @@ DIRECTIONS: dict[str, tuple[str, ...]] = {
     "robot_docking": ("",),
 }
 
-# task type -> default demonstration scene (a shipped scenario name)
+# task type -> default demonstration scene (a shipped scenario name; gap crossing: the
+# only shipped scene with gaps)
 DEFAULT_SCENES: dict[str, str] = {
     "doorway_crossing": "demo_doorway_crossing",
     "gap_crossing": "cluttered_room",

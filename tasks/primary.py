@@ -1,80 +1,13 @@
-"""The primary navigation task: progress along the route, the inspection, scoring.
+"""The primary navigation task: progress along the route, the inspection, scoring
+(thesis Sec. 7.6.1.2, 7.6.2 and Fig. 7.50c; Sec. 7.5, Fig. 7.44b and Table 7.10;
+spec section 7).
 
-Thesis section 7.6.1.2 and spec section 7: drive from A, dock under the table
-at B, drive back to A; on the way, when the red cylinder is seen on the camera,
-inspect it "by moving the robot sideways while facing the object"; as fast and
-as safely as possible. The score is the completion time plus 60 s per
-collision (thesis 7.6.2, Fig. 7.50c). Thesis section 7.5 (Fig. 7.44b, Table
-7.10) reports the distribution, mean and standard deviation of the robot's
-minimum clearance to obstacles, which :class:`PrimaryOutcome` carries as well.
-
-This module is pure: the control loop calls :meth:`PrimaryTask.update` once per
-tick with the simulated time, the true pose, the robot-frame velocity, the
-tick's minimum clearance (see :func:`footprint_clearance`) and the collision
-episodes the World reported as started during the tick; it returns
-:class:`PrimaryEvent` values for the caller to record and display.
-:meth:`PrimaryTask.outcome` gives the trial's result.
-
-Decisions where the thesis and the spec are silent (settings in
-:class:`PrimarySettings`):
-
-- Route. A route is a sequence of goals, ``"dock"`` (the ``[dock]`` pose B:
-  the robot centre within ``dock.tolerance_m`` of B and the heading within
-  ``dock.tolerance_rad`` of B's; docked under the table, or, for a practice
-  course without a table, just that pose) and ``"start"`` (the robot centre
-  within ``goal_tolerance_m`` of A, any heading). Goals are taken strictly in
-  order and at most one per tick, so reaching A before B does nothing. The
-  robot starts at A, so a route may not begin with ``"start"``, and two equal
-  goals in a row would be reached at once, so they are refused.
-- Timing. The clock starts at ``t_start`` (default 0, the World's reset time),
-  not at the first update; the completion time is the elapsed time of the tick
-  at which the last goal is reached. Leg times are the differences between
-  successive goal times.
-- Inspection. The inspection object's surface distance is measured from the
-  robot centre (cylinder: centre distance minus radius; box: distance to its
-  footprint). A tick *qualifies* when that distance is within
-  ``inspection_distance_m``, the object's centre lies within
-  ``facing_tolerance_deg`` of the heading, and the robot moves sideways
-  (``|v_y| >= min_sideways_speed`` and ``|v_y| > |v_x|``). A *visit* is a
-  maximal run of ticks within the distance band. Over a visit the signed angle
-  the robot centre sweeps about the object's centre is summed over the
-  qualifying ticks only (the step from the previous tick to a qualifying tick);
-  the inspection is done when the absolute net arc of a visit reaches
-  ``min_arc_deg``. Either direction counts; going back and forth cancels out.
-  A pause inside the band (stopping to answer a secondary-task question, which
-  has priority, thesis 7.6.1.3) keeps the visit's arc; leaving the band ends
-  the visit and the next visit starts from zero. ``inspection_arc_deg`` in
-  the outcome is the largest absolute net arc any visit reached.
-  ``inspection_started`` is reported at the first qualifying tick of each
-  visit until the inspection is done.
-- Missing inspection. With ``inspection_required`` the task is not completed
-  until the inspection is done: arriving at the last goal without it reports
-  ``inspection_missing`` (once per arrival) and the participant has to go
-  back to the object and then return; the clock keeps running and a timeout
-  may end the trial. This is what an experimenter enforcing the instruction
-  would do, and it keeps every completed trial comparable (same route, same
-  inspection). The other reading, completing the trial and flagging it, is
-  ``inspection_required=False``: the inspection is still tracked and reported
-  in ``inspection_done`` and ``inspection_arc_deg``.
-- Collisions. Each :class:`~sim.types.Contact` episode counts once, by its
-  ``index``, however often it is passed; episodes passed after the task has
-  ended are not counted.
-- Timeout. The first tick with elapsed time ``>= timeout_s`` at which the task
-  is not completed ends it: ``completed`` False, ``completion_time_s`` equal to
-  ``timeout_s`` and the score ``timeout_s + collision_penalty_s *
-  collisions``, a lower bound of the score the participant would have had
-  (a censored value; analyses should flag or drop such trials). Reaching the
-  last goal on that very tick counts as completion.
-- Path length and clearance use the ticks from the first update up to and
-  including the tick that ends the task. Clearance values that are NaN (no
-  measurement) are skipped; ``inf`` (nothing within range) counts in the
-  histogram's overflow bin but not in the mean, standard deviation (ddof=0,
-  as a description of the trial, Table 7.10) or minimum. The histogram has
-  fixed 0.1 m bins from 0 to 2 m (:data:`CLEARANCE_BIN_EDGES_M`) and one
-  overflow bin for 2 m and more, so trials and participants can be pooled.
-- :meth:`PrimaryTask.outcome` may be called at any time; before the task ends
-  it describes the trial so far (``completed`` and ``timed_out`` False, the
-  elapsed time as completion time), which is what an aborted trial stores.
+Drive from A, dock under the table at B, drive back to A; on the way inspect the red
+cylinder "by moving the robot sideways while facing the object"; as fast and as
+safely as possible. The score is the completion time plus 60 s per collision; the
+outcome also carries the robot's clearance to obstacles. Pure: the control loop calls
+:meth:`PrimaryTask.update` once per tick and records the :class:`PrimaryEvent` values
+it returns; :meth:`PrimaryTask.outcome` gives the trial's result.
 """
 
 from __future__ import annotations
@@ -88,6 +21,7 @@ import numpy as np
 
 from sim.scenario import Box, Cylinder, Scenario
 from sim.types import Contact, Pose2D, wrap_angle
+from tasks.geometry import polygon_distances
 
 GOALS: tuple[str, ...] = ("dock", "start")
 ROUTE_POINT_GOALS: dict[str, str] = {"A": "start", "B": "dock"}  # a protocol's route points
@@ -293,105 +227,6 @@ def route_from_points(points: Sequence[str]) -> tuple[str, ...]:
     return tuple(ROUTE_POINT_GOALS[p] for p in points[1:])
 
 
-# ------------------------------------------------------------------------ geometry
-
-
-def polygon_distances(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
-    """Euclidean distance from each point to a filled polygon, 0 inside.
-
-    Parameters
-    ----------
-    points : ndarray, shape (m, 2)
-        Points [m].
-    polygon : ndarray, shape (k, 2)
-        Vertices [m] of a simple polygon in order (either orientation), k >= 3.
-
-    Returns
-    -------
-    ndarray, shape (m,)
-        Distances [m]; 0 for points inside or on the boundary (even-odd rule).
-    """
-    p = np.asarray(points, dtype=float).reshape(-1, 2)
-    a = np.asarray(polygon, dtype=float)
-    if a.ndim != 2 or a.shape[1] != 2 or len(a) < 3 or not np.all(np.isfinite(a)):
-        raise ValueError(f"polygon: must be (k, 2) finite vertices with k >= 3, got {a.shape}")
-    if not np.all(np.isfinite(p)):
-        raise ValueError("points: must be finite")
-    if len(p) == 0:
-        return np.empty(0)
-    b = np.roll(a, -1, axis=0)
-    ex, ey = (b - a).T  # (k,) edge vectors
-    ax, ay, by = a[:, 0], a[:, 1], b[:, 1]
-    length2 = ex * ex + ey * ey
-    px, py = p[:, 0:1], p[:, 1:2]  # (m, 1)
-    rx, ry = px - ax, py - ay  # (m, k) from each edge's start
-    with np.errstate(invalid="ignore", divide="ignore"):
-        # Nearest point of each edge: the projection clipped to the segment.
-        s = np.clip(np.where(length2 > 0, (rx * ex + ry * ey) / length2, 0.0), 0.0, 1.0)
-        dx, dy = rx - s * ex, ry - s * ey
-        dist = np.sqrt((dx * dx + dy * dy).min(axis=1))
-        # Even-odd rule: count edges crossing the horizontal ray to the point's right.
-        straddles = (ay > py) != (by > py)
-        x_cross = ax + ry * ex / (by - ay)
-    inside = (np.count_nonzero(straddles & (px < x_cross), axis=1) % 2) == 1
-    return np.where(inside, 0.0, dist)
-
-
-def footprint_clearance(points: np.ndarray, footprint: np.ndarray) -> float:
-    """Minimum distance [m] from the robot's footprint to the laser points.
-
-    Parameters
-    ----------
-    points : ndarray, shape (m, 2)
-        Laser hits [m] in the robot frame (``Observation.points``).
-    footprint : ndarray, shape (k, 2)
-        Footprint polygon [m] in the robot frame (``RobotSpec.footprint()``).
-
-    Returns
-    -------
-    float
-        The smallest point-to-polygon distance [m]; 0 if a point lies inside
-        the footprint; ``inf`` without points.
-
-    Notes
-    -----
-    An axis-aligned rectangle (any robot's ``RobotSpec.footprint()``) takes a
-    closed-form path, about 15 times faster than :func:`polygon_distances` for the
-    two 271-beam scans; it equals the general result to rounding (~1e-16 m).
-    """
-    box = _axis_aligned_box(footprint)
-    if box is None:
-        d = polygon_distances(points, footprint)
-        return float(d.min()) if len(d) else math.inf
-    p = np.asarray(points, dtype=float).reshape(-1, 2)
-    if not np.all(np.isfinite(p)):
-        raise ValueError("points: must be finite")
-    if len(p) == 0:
-        return math.inf
-    # the robot's rectangle, axis-aligned in its own frame: per point, the distance to
-    # the rectangle is the norm of how far it lies outside each slab (0 inside)
-    x0, x1, y0, y1 = box
-    x, y = p[:, 0], p[:, 1]
-    dx = np.maximum(np.maximum(x0 - x, x - x1), 0.0)
-    dy = np.maximum(np.maximum(y0 - y, y - y1), 0.0)
-    return math.sqrt(float((dx * dx + dy * dy).min()))
-
-
-def _axis_aligned_box(polygon: np.ndarray) -> tuple[float, float, float, float] | None:
-    """``(x_min, x_max, y_min, y_max)`` [m] if ``polygon`` (4, 2) is an axis-aligned
-    rectangle of positive area (edges alternately along x and y), else None."""
-    a = np.asarray(polygon, dtype=float)
-    if a.shape != (4, 2) or not np.all(np.isfinite(a)):
-        return None
-    (ax, ay), (bx, by), (cx, cy), (dx, dy) = a.tolist()
-    x_first = ay == by and bx == cx and cy == dy and dx == ax  # edges x, y, x, y
-    y_first = ax == bx and by == cy and cx == dx and dy == ay  # edges y, x, y, x
-    if not (x_first or y_first):
-        return None
-    x0, x1, y0, y1 = min(ax, cx), max(ax, cx), min(ay, cy), max(ay, cy)
-    return (x0, x1, y0, y1) if x0 < x1 and y0 < y1 else None
-
-
 # ---------------------------------------------------------------------------- task
 
 
@@ -530,7 +365,7 @@ class PrimaryTask:
         velocity : ndarray, shape (3,)
             Robot-frame ``(v_x [m/s], v_y [m/s], omega [rad/s])``.
         clearance_m : float
-            The tick's minimum clearance [m] (:func:`footprint_clearance`); NaN
+            The tick's minimum clearance [m] (:func:`tasks.geometry.footprint_clearance`); NaN
             if there was no measurement.
         contacts_started : sequence of Contact
             Collision episodes that started during the tick (``World.step()``).
@@ -555,7 +390,6 @@ class PrimaryTask:
             raise ValueError(f"PrimaryTask.update: clearance_m must be >= 0, got {clearance!r}")
         self._t_last = float(t)
         elapsed = self._t_last - self.t_start
-        s = self.settings
         events: list[PrimaryEvent] = []
 
         for contact in contacts_started:
@@ -567,6 +401,20 @@ class PrimaryTask:
         self._add_clearance(clearance)
         self._inspect(t, pose, v, events)
 
+        self._advance(t, elapsed, pose, events)
+        return events
+
+    def _advance(self, t: float, elapsed: float, pose: Pose2D, events: list[PrimaryEvent]) -> None:
+        """Reach the current leg's goal, or end the task by timeout.
+
+        Goals are taken strictly in order, at most one per tick. With
+        ``inspection_required`` the last goal without the inspection reports
+        ``inspection_missing`` once per arrival and does not complete the task. The first
+        tick with elapsed time ``>= timeout_s`` that has not completed the task ends it
+        with ``completion_time_s = timeout_s`` (reaching the last goal on that very tick
+        counts as completion).
+        """
+        s = self.settings
         goal = s.route[self._leg]
         if self._goal_reached(goal, pose):
             final = self._leg == len(s.route) - 1
@@ -591,7 +439,6 @@ class PrimaryTask:
             self._timed_out = True
             self._completion_s = s.timeout_s
             events.append(PrimaryEvent("timeout", t))
-        return events
 
     def _goal_reached(self, goal: str, pose: Pose2D) -> bool:
         if goal == "start":
@@ -615,6 +462,15 @@ class PrimaryTask:
             self._clearances.append(clearance)
 
     def _inspect(self, t: float, pose: Pose2D, v: np.ndarray, events: list[PrimaryEvent]) -> None:
+        """Track the inspection: the surface distance from the robot centre, visits and arcs.
+
+        A tick qualifies when the distance is within ``inspection_distance_m``, the
+        object's centre lies within ``facing_tolerance_deg`` of the heading and the robot
+        moves sideways (``|v_y| >= min_sideways_speed`` and ``|v_y| > |v_x|``). A visit is
+        a maximal run of ticks within the band; the signed angle swept about the object's
+        centre is summed over qualifying ticks, and the inspection is done when a visit's
+        absolute net arc reaches ``min_arc_deg``.
+        """
         obj = self._object
         if obj is None or self._inspected:
             return
@@ -658,7 +514,12 @@ class PrimaryTask:
     # -- result -----------------------------------------------------------------------
 
     def outcome(self) -> PrimaryOutcome:
-        """The trial's result, or the trial so far while it runs (see the module notes)."""
+        """The trial's result, or the trial so far while it runs.
+
+        Before the task ends: ``completed`` and ``timed_out`` False, the elapsed time as
+        completion time (what an aborted trial stores). Clearance statistics skip NaN
+        (no measurement); ``inf`` counts in the histogram's overflow bin only.
+        """
         s = self.settings
         time_s = self._completion_s if self._done else self.elapsed_s
         if self._clearances:

@@ -1,48 +1,13 @@
-"""The secondary task: judging shown answers to two-digit arithmetic questions.
+"""The secondary task: judging shown answers to two-digit arithmetic questions (thesis
+Sec. 7.6.1.2, 7.6.1.3 and footnote 30; spec section 7).
 
-Thesis section 7.6.1.2 and spec section 7: whenever the robot enters the
-marked region, the participant does 20 consecutive questions; each adds or
-subtracts two two-digit numbers and shows an answer that is either correct or
-"restricted to be very close to the correct one" (footnote 30: "too extreme
-answer was observed to over-simplify the task"); the participant presses Yes
-or No on the gamepad. Answer time and correctness are recorded. Before the
-trials, a baseline block of 40 questions without driving (section 7.6.1.3).
-
-This module is pure: the control loop calls :meth:`SecondaryTask.update` once
-per tick with the simulated time and whether the robot is inside the region,
-and :meth:`SecondaryTask.answer` when a Yes/No button is pressed; both return
-:class:`SecondaryEvent` values for the caller to record and display.
-
-Decisions where the thesis is silent (all in :class:`SecondarySettings`):
-
-- Operands are uniform on 10..99; "+" and "-" are equally likely. For "-" the
-  two operands are distinct and the larger comes first, so results are 1..89,
-  never negative (a negative result would be a giveaway) and never the trivial
-  ``n - n``.
-- The shown answer is correct with probability ``p_correct`` = 0.5. Otherwise
-  it is the result plus an offset drawn uniformly from ``near_miss_offsets`` =
-  (-10, -2, -1, +1, +2, +10): the small slips of mental arithmetic, and +-10, the
-  typical carry or borrow error, which keeps the last digit and so cannot be
-  caught by checking units alone. Offsets that would make the shown answer
-  negative are left out of the draw for that question.
-- A question left unanswered for ``timeout_s`` = 8 s counts as a miss and is
-  replaced; the thesis's participants answered within a few seconds, so 8 s
-  only ends questions that were ignored. The next question appears ``gap_s``
-  = 0.5 s after an answer or timeout, so that consecutive questions are seen
-  as different; the first question of a block appears at once.
-- Events are stamped with the tick time at which the screen changes (a
-  timeout is detected by the first ``update`` at or after the deadline); an
-  answer counts whenever a question is on screen, i.e. until the ``update``
-  that removes it.
-- A block starts on an entry into the region (outside -> inside between two
-  updates; the robot is taken to be outside before the first update, so
-  starting inside counts as an entry) when no block is running. Leaving the
-  region mid-block does not stop the block ("consecutively do 20"); entries
-  during a block are ignored, not queued, so a new block needs a new entry
-  after the previous block has ended.
-- ``block_finished`` is stamped with the time the last question was answered
-  or timed out, and reported by the next ``update`` (``answer`` returns one
-  event only).
+Whenever the robot enters the marked region, the participant does 20 consecutive
+questions; each adds or subtracts two two-digit numbers and shows an answer that is
+either correct or very close to the correct one; the participant presses Yes or No on
+the gamepad. Answer time and correctness are recorded. Before the trials, a baseline
+block of 40 questions without driving. Pure: the control loop calls
+:meth:`SecondaryTask.update` once per tick and :meth:`SecondaryTask.answer` on a
+button press; both return :class:`SecondaryEvent` values to record and display.
 """
 
 from __future__ import annotations

@@ -1,88 +1,26 @@
 """Scripted skills that perform the contextual tasks the way a person with a gamepad
-would (thesis Sec. 7.2.3, 7.4.1-7.4.2; spec section 3), and :class:`HumanStick`, the
-filter that makes an ideal command look like a human hand on a stick.
+would (thesis Sec. 7.2.3, 7.4.1-7.4.2; spec section 3).
 
 A skill is reset with a :class:`~tasks.contextual.ContextualTask` and a
-``numpy.random.Generator`` (which draws its random parameters: inspection distance
-and arc, wall distance and length, bypass clearance) and is then asked every control
-tick for a command: ``act(obs) -> SkillStep(u, done, phase)``. ``u`` is a robot-frame
-joystick command in physical units ``(v_x [m/s], v_y [m/s], omega [rad/s])``. Skills
-are composable: a synthetic participant may chain them along a route, resetting one
-skill per task.
-
-What each skill does (decisions where the spec is silent are marked *decided*):
-
-- Doorway and gap crossing: the crossing direction is away from the side the robot
-  is on when it first acts; drive to a pre-point ``pass_distance`` before the
-  passage's centre on its normal, turning to the crossing heading on the way (facing
-  the direction of travel while more than ``face_travel_m`` away, a person drives
-  forwards), then follow the centre line through to the post-point
-  ``pass_distance`` beyond; done there, or (*decided*) as soon as the robot's rear
-  is 0.2 m past the passage and the way on is blocked within ``blocked_distance``.
-- Object inspection: approach the target point (the nearest surface point, spec
-  section 3) to an inspection distance drawn from ``inspection_distance`` while
-  facing it, then move sideways (``v_y``) in the chosen direction, keeping the target
-  point's bearing at zero (``omega``, with a feed-forward of the circling rate) and
-  the distance (``v_x``), until the robot's position angle about the object's
-  centre has swept an arc drawn from ``inspection_arc_deg``. *Decided*: "cw"/"ccw"
-  seen from above; moving to the robot's right while facing the object is ccw.
-- Wall following: the wall's face on the robot's side is found from its surface
-  points (principal axis, *decided*); the robot approaches a line at a distance drawn
-  from ``wall_distance`` from the face (robot centre to face), turns parallel with
-  the wall on the chosen side and follows for a length drawn from ``wall_length``,
-  or until ``wall_end_margin`` before the face ends, or until something standing
-  against the wall blocks the way within ``blocked_distance``; done then.
-- Object bypass: *decided*: the line of travel is the ray from the robot's first
-  position through the object's centre (the recorder heads the robot roughly at the
-  object, so this is "along the initial heading" made robust to a few degrees of
-  heading noise). The robot swerves onto a parallel line with the object on the
-  chosen side, the robot's side ``bypass_clearance`` from the object's circumcircle,
-  facing its direction of travel; done once its rear is past the circumcircle.
-- Robot docking: drive to a pre-point ``dock_pre_distance`` before the dock on its
-  approach normal, align with the normal there (a person stops and lines up before
-  driving under a table), then drive in slowly along the normal until the centre is
-  within ``dock_tolerance`` of the dock centre; done.
-
-Every skill works in the map frame of the *estimated* pose ``obs.pose`` (the
-participant sees the robot on the map) and converts its command into the robot
-frame. Before it is returned, an ideal command passes a guard against the laser
-points ``obs.points`` (people do not drive into walls on purpose): for the wanted
-direction and 16 others up to 1.2 rad either side, the points in the corridor the
-footprint sweeps cap the speed at ``guard_gain * (free - guard_stop)``; the direction
-with the most progress along the wanted one wins (so the robot slows down near
-obstacles and slides past an edge instead of stalling on it); a turn that would
-swing the footprint's corners over a point is held. Every skill stops
-after ``max_ticks`` calls with ``done`` and phase ``"timeout"``.
-
-:class:`HumanStick` (*decided*, after the thesis's average driving speed of about
-0.3 m/s, Sec. 7.2.3): the translation is scaled by ``preferred_speed /
-reference_speed`` (a person who likes to drive faster pushes further for the same
-intention); occasional over- or undershoot episodes (Poisson onsets, a random gain
-held for a random duration); a reaction delay of ``delay_ticks`` (FIFO); low-pass
-filtered Gaussian noise per channel while the stick is deflected (first-order, time
-constant ``noise_tau_s``); a per-channel deadzone and quantisation of the axis to
-``levels`` steps; and finally the robot's limits (``|v_xy| <= max_speed``,
-``|omega| <= max_yaw_rate``). Every tick draws the same number of variates, so the
-output is a deterministic function of the Generator's state and the inputs.
-
-Speed (both run every tick of every synthetic participant): :class:`HumanStick` computes
-in scalar arithmetic, the same IEEE operations in the same order as its array form
-(``tests/test_skills.py`` keeps that form and compares bit for bit, signed zeros
-included); the guard tests only the laser points within :func:`_guard_reach` of the
-robot's centre, which cannot change its result (equal to the guard over all points up to
-the last bits of numpy's matrix product, whose rounding depends on the number of points).
+``numpy.random.Generator`` (which draws its random parameters) and is then asked every
+control tick for a command: ``act(obs) -> SkillStep(u, done, phase)``, ``u`` a
+robot-frame joystick command ``(v_x [m/s], v_y [m/s], omega [rad/s])``. Skills work in
+the map frame of the estimated pose ``obs.pose`` (the participant sees the robot on the
+map); each command passes the obstacle guard (:mod:`tasks.guard`); every skill stops
+after ``max_ticks`` calls with ``done`` and phase ``"timeout"``. The human hand on the
+stick is :mod:`tasks.stick`.
 """
 
 from __future__ import annotations
 
 import math
-from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
 
 from sim.types import Observation, Pose2D, SemanticComponent, wrap_angle
 from tasks.contextual import TARGET_KIND, ContextualTask
+from tasks.guard import _guard, _unit, free_ahead
 
 _ZERO = np.zeros(3)
 _ZERO.flags.writeable = False
@@ -153,11 +91,6 @@ class WallFace:
 # --------------------------------------------------------------------------- geometry
 
 
-def _unit(v: np.ndarray) -> np.ndarray:
-    n = float(np.hypot(v[0], v[1]))
-    return v / n if n > 1e-12 else np.array([1.0, 0.0])
-
-
 def _yaw(v: np.ndarray) -> float:
     return math.atan2(float(v[1]), float(v[0]))
 
@@ -208,120 +141,6 @@ def wall_face(points: np.ndarray, position: np.ndarray) -> WallFace:
         lo=float(along.min()),
         hi=float(along.max()),
     )
-
-
-def _corridor(points: np.ndarray, d: np.ndarray, s: SkillSettings) -> tuple[np.ndarray, np.ndarray]:
-    """Free distances [m] ahead of the footprint and signed lateral offsets [m] (+ left)
-    of the laser points (robot frame) in the corridor it sweeps along unit ``d``."""
-    along = points @ d
-    across = points[:, 1] * d[0] - points[:, 0] * d[1]  # cross(d, p): + left of d
-    front = s.half_length * abs(d[0]) + s.half_width * abs(d[1])  # the box's support along d
-    half = s.half_length * abs(d[1]) + s.half_width * abs(d[0])
-    # points beside the body (behind its front face) are not in the way of this motion
-    inside = (np.abs(across) < half + s.guard_margin) & (along > front - 0.02)
-    return along[inside] - front, across[inside]
-
-
-def free_ahead(points: np.ndarray, direction: np.ndarray, s: SkillSettings) -> float:
-    """Free distance [m] the footprint can travel along robot-frame ``direction`` (2,)
-    before it meets a laser point (``inf`` when the corridor is empty)."""
-    gaps, _ = _corridor(np.asarray(points).reshape(-1, 2), _unit(np.asarray(direction)), s)
-    return float(gaps.min()) if len(gaps) else math.inf
-
-
-def _free_all(points: np.ndarray, dirs: np.ndarray, s: SkillSettings) -> np.ndarray:
-    """:func:`free_ahead` for many unit directions (k, 2) at once -> (k,) [m]."""
-    along = dirs @ points.T  # (k, m)
-    across = dirs[:, :1] * points[:, 1] - dirs[:, 1:] * points[:, 0]
-    ax, ay = np.abs(dirs[:, :1]), np.abs(dirs[:, 1:])
-    front = s.half_length * ax + s.half_width * ay
-    half = s.half_length * ay + s.half_width * ax
-    inside = (np.abs(across) < half + s.guard_margin) & (along > front - 0.02)
-    return np.where(inside, along - front, np.inf).min(axis=1)
-
-
-def _turn_guard(omega: float, points: np.ndarray, s: SkillSettings) -> float:
-    """``omega`` [rad/s], or 0 when turning 0.15 rad that way would sweep the footprint
-    (grown by ``guard_margin``) over a laser point (a box's corners swing out)."""
-    if abs(omega) < 1e-9:
-        return omega
-    reach = math.hypot(s.half_length, s.half_width) + s.guard_margin
-    near = points[np.einsum("ij,ij->i", points, points) < reach * reach]
-    if not len(near):
-        return omega
-    for a in (0.05, 0.1, 0.15):  # seen from the turned robot, points turn the other way
-        c, si = math.cos(a), math.sin(-a if omega > 0 else a)
-        x = c * near[:, 0] - si * near[:, 1]
-        y = si * near[:, 0] + c * near[:, 1]
-        hit = (np.abs(x) < s.half_length + s.guard_margin) & (
-            np.abs(y) < s.half_width + s.guard_margin
-        )
-        if np.any(hit):
-            return 0.0
-    return omega
-
-
-_GUARD_OFFSETS = np.linspace(-1.2, 1.2, 17)  # [rad] directions the guard may take instead
-_GUARD_COS = np.cos(_GUARD_OFFSETS)
-_GUARD_PENALTY = 0.02 * np.abs(_GUARD_OFFSETS)
-
-
-def _guard_reach(speed: float, s: SkillSettings) -> float:
-    """Distance [m] from the robot's centre beyond which no laser point can cap a motion at
-    ``speed`` [m/s] in any direction (see :func:`_guard`); ``inf`` for a gain <= 0."""
-    if not s.guard_gain > 0:
-        return math.inf
-    # a point in the corridor of unit d has |across| < half + margin and is free by
-    # along - front with along = sqrt(|p|^2 - across^2); front, half <= the circumradius
-    radius = math.hypot(s.half_length, s.half_width)
-    ahead = s.guard_stop + speed / s.guard_gain + radius + 0.01  # 0.01 m: rounding slack
-    side = radius + max(s.guard_margin, 0.0)
-    return math.sqrt(ahead * ahead + side * side)
-
-
-def _guard(u: np.ndarray, points: np.ndarray, s: SkillSettings) -> np.ndarray:
-    """Keep the footprint off the laser points (robot frame): of the wanted direction
-    and directions up to 1.2 rad either side, take the one with the most progress in
-    the wanted direction once each is capped to ``guard_gain * (free - guard_stop)``
-    (people steer around what they would hit and slow down near it); rotation is kept.
-
-    Speed: only the points within :func:`_guard_reach` of the centre enter the corridor
-    test. A point farther away is free by at least ``guard_stop + speed / guard_gain``
-    (plus a slack) along every direction whose corridor it lies in, so it cannot cap the
-    speed: the capped speeds, hence the result, are exactly those over all points. The
-    turn guard's points (within the footprint's circumradius plus the margin) are a
-    subset of those, in the same order.
-    """
-    if len(points) == 0:
-        return u
-    speed = float(np.hypot(u[0], u[1]))
-    reach = _guard_reach(speed, s)
-    if math.isfinite(reach):
-        points = points[np.einsum("ij,ij->i", points, points) < reach * reach]
-    u = np.array([u[0], u[1], _turn_guard(float(u[2]), points, s)])
-    if speed < 1e-9:
-        return u
-    base = math.atan2(u[1], u[0])
-    angles = base + _GUARD_OFFSETS
-    dirs = np.column_stack((np.cos(angles), np.sin(angles)))
-    if len(points):
-        free = _free_all(points, dirs, s)
-        allowed = np.minimum(speed, np.maximum(0.0, s.guard_gain * (free - s.guard_stop)))
-    else:  # nothing within reach: every direction at full speed (as with free = inf)
-        allowed = np.full(len(dirs), speed)
-    progress = allowed * _GUARD_COS - _GUARD_PENALTY
-    best = int(np.argmax(progress))
-    if progress[best] <= 0.0:
-        return np.array([0.0, 0.0, u[2]])
-    v = dirs[best] * allowed[best]
-    return np.array([v[0], v[1], u[2]])
-
-
-def guard_command(u: np.ndarray, points: np.ndarray, settings: SkillSettings) -> np.ndarray:
-    """The skills' obstacle guard (see the module docstring) for any ideal command: ``u``
-    (3,) robot frame [m/s, m/s, rad/s], ``points`` (k, 2) laser points in the robot frame
-    [m]; returns the guarded command (3,). Used by synthetic participants."""
-    return _guard(np.asarray(u, dtype=float), np.asarray(points).reshape(-1, 2), settings)
 
 
 # --------------------------------------------------------------------------- skills
@@ -664,119 +483,3 @@ def make_skill(task_type: str, *, settings: SkillSettings | None = None) -> Skil
     if task_type not in SKILLS:
         raise ValueError(f"task: unknown task type {task_type!r}; allowed: {', '.join(SKILLS)}")
     return SKILLS[task_type](settings)
-
-
-# --------------------------------------------------------------------------- the stick
-
-
-@dataclass(frozen=True, slots=True)
-class HumanStickSettings:
-    """A human hand on a gamepad stick (decided; see the module docstring)."""
-
-    preferred_speed: float = 0.35  # [m/s] (thesis Sec. 7.2.3: about 0.3 m/s on average)
-    reference_speed: float = 0.4  # [m/s] the skills' cruise speed it rescales
-    noise_sigma: tuple[float, float, float] = (0.04, 0.04, 0.08)  # [m/s, m/s, rad/s]
-    noise_tau_s: float = 0.4  # [s] time constant of the low-pass noise
-    delay_ticks: int = 4  # reaction delay [ticks] (200 ms at 20 Hz)
-    deadzone: float = 0.05  # fraction of full deflection read as zero, per channel
-    levels: int = 127  # quantisation steps per half axis
-    overshoot_rate_hz: float = 0.25  # [1/s] onsets of over/undershoot episodes
-    overshoot_gain: tuple[float, float] = (0.7, 1.35)  # gain range of an episode
-    overshoot_duration_s: tuple[float, float] = (0.3, 1.0)  # [s]
-    max_speed: float = 1.0  # [m/s] full deflection, translation (thesis 7.6.1.1)
-    max_yaw_rate: float = 1.2  # [rad/s] full deflection, rotation
-    dt: float = 0.05  # [s] control tick
-
-    def __post_init__(self) -> None:
-        for name in ("preferred_speed", "reference_speed", "max_speed", "max_yaw_rate", "dt"):
-            if not getattr(self, name) > 0:
-                raise ValueError(f"HumanStickSettings: field '{name}': must be positive")
-        if self.delay_ticks < 0 or self.levels < 1 or not 0 <= self.deadzone < 1:
-            raise ValueError(
-                "HumanStickSettings: fields 'delay_ticks' >= 0, 'levels' >= 1, "
-                "'deadzone' in [0, 1) required"
-            )
-
-
-def _axis(value: float, full: float, s: HumanStickSettings) -> float:
-    """One channel of the stick: ``value / full`` clipped to [-1, 1], the deadzone, the
-    quantisation to ``levels`` steps; as ``numpy.clip``, ``numpy.where`` and
-    ``numpy.round`` (half to even, keeping the sign of a zero) do it on an array."""
-    axis = min(max(value / full, -1.0), 1.0)
-    if abs(axis) < s.deadzone:
-        return 0.0
-    scaled = axis * s.levels
-    return math.copysign(float(round(scaled)), scaled) / s.levels
-
-
-class HumanStick:
-    """Turns ideal commands into human-like stick commands; deterministic per Generator.
-
-    Call :meth:`reset` with a Generator, then :meth:`filter` once per tick.
-    """
-
-    def __init__(self, settings: HumanStickSettings | None = None) -> None:
-        self.settings = HumanStickSettings() if settings is None else settings
-
-    def reset(self, rng: np.random.Generator) -> None:
-        """Forget the past; ``rng`` draws all of this stick's noise from now on."""
-        s = self.settings
-        self._rng = rng
-        self._fifo: deque[tuple[float, float, float]] = deque([(0.0, 0.0, 0.0)] * s.delay_ticks)
-        self._noise = (0.0, 0.0, 0.0)
-        self._gain = 1.0
-        self._episode_left = 0
-
-    def filter(self, u_ideal: np.ndarray) -> np.ndarray:
-        """The stick command for this tick.
-
-        Parameters
-        ----------
-        u_ideal : numpy.ndarray
-            (3,) the ideal robot-frame command (v_x [m/s], v_y [m/s], omega [rad/s]).
-
-        Returns
-        -------
-        numpy.ndarray
-            (3,) what the hand actually commands, within the robot's limits.
-        """
-        s = self.settings
-        if not hasattr(self, "_rng"):
-            raise RuntimeError("HumanStick.filter called before reset()")
-        # scalar arithmetic (numpy on 3 numbers costs more than the numbers): the same
-        # IEEE operations in the same order as the array form, so the same result
-        z0, z1, z2 = self._rng.standard_normal(3).tolist()
-        onset, g, dur = self._rng.random(3).tolist()  # always three, to keep the stream aligned
-        u0, u1, u2 = (float(c) for c in u_ideal)
-        k = s.preferred_speed / s.reference_speed
-        u0, u1 = u0 * k, u1 * k
-        if self._episode_left > 0:
-            self._episode_left -= 1
-        else:
-            self._gain = 1.0
-            if onset < s.overshoot_rate_hz * s.dt:
-                lo, hi = s.overshoot_gain
-                self._gain = lo + g * (hi - lo)
-                d_lo, d_hi = s.overshoot_duration_s
-                self._episode_left = round((d_lo + dur * (d_hi - d_lo)) / s.dt)
-        gain = self._gain
-        self._fifo.append((u0 * gain, u1 * gain, u2 * gain))
-        u0, u1, u2 = self._fifo.popleft()
-        a = math.exp(-s.dt / s.noise_tau_s)
-        b = math.sqrt(1 - a * a)
-        n0, n1, n2 = self._noise
-        sg0, sg1, sg2 = s.noise_sigma
-        self._noise = (a * n0 + b * sg0 * z0, a * n1 + b * sg1 * z1, a * n2 + b * sg2 * z2)
-        if abs(u0) > 1e-9 or abs(u1) > 1e-9 or abs(u2) > 1e-9:  # a hand off the stick
-            n0, n1, n2 = self._noise  # does not tremble
-            u0, u1, u2 = u0 + n0, u1 + n1, u2 + n2
-        full_v, full_w = s.max_speed, s.max_yaw_rate
-        out0 = _axis(u0, full_v, s) * full_v
-        out1 = _axis(u1, full_v, s) * full_v
-        out2 = _axis(u2, full_w, s) * full_w
-        out = np.array((out0, out1, out2))
-        if out0 * out0 + out1 * out1 > s.max_speed * s.max_speed * (1.0 - 1e-9):
-            speed = float(np.hypot(out0, out1))  # numpy's hypot, as before
-            if speed > s.max_speed:
-                out[:2] *= s.max_speed / speed
-        return out

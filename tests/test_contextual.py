@@ -26,8 +26,8 @@ from autonomy.sogp_classifier import recognise
 from autonomy.tracking import track
 from autonomy.training import TrainSettings, synthetic_demonstrations, train
 from autonomy.types import RobotModel
+from sim.testing import cluttered_segments, synthetic_observation
 from sim.types import SemanticComponent
-from study.bench.autonomy import cluttered_segments, synthetic_observation
 
 ROBOT = RobotModel.rectangle(0.6, 0.5)
 FAST = TrainSettings(

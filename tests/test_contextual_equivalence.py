@@ -314,7 +314,7 @@ def _scene(rng: np.random.Generator, n: int) -> tuple[SemanticComponent, ...]:
 
 
 def test_equal_outputs_on_synthetic_scenes_with_plain_tuples(model_file, rng):
-    from study.bench.autonomy import cluttered_segments, synthetic_observation
+    from sim.testing import cluttered_segments, synthetic_observation
 
     robot = RobotModel.rectangle()
     settings = ContextualSettings(model_path=model_file, candidates=int(rng.integers(1, 12)))

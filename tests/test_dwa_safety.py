@@ -20,7 +20,7 @@ from autonomy.safety import (
     translation_distance,
 )
 from autonomy.types import RobotModel
-from study.bench.autonomy import box_segments, cluttered_segments, synthetic_observation
+from sim.testing import box_segments, cluttered_segments, synthetic_observation
 
 ROBOT = RobotModel.rectangle(0.6, 0.5)
 

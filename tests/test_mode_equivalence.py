@@ -31,7 +31,7 @@ from autonomy.reactive_bn import (
 )
 from autonomy.safety import arc_poses, inflated_radius, translation_distance
 from autonomy.types import RobotModel
-from study.bench.autonomy import cluttered_segments, synthetic_observation
+from sim.testing import cluttered_segments, synthetic_observation
 
 sys.path.insert(0, str(Path(__file__).parent / "golden"))
 from make_mode_equivalence import COLUMNS, cases, load, outputs  # noqa: E402

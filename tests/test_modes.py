@@ -14,8 +14,8 @@ from hypothesis import strategies as st
 from autonomy.modes import MODES, available_modes, make_mode, register
 from autonomy.types import Assist, Mode, RobotModel
 from sim.scenario import available_scenarios, load_scenario
+from sim.testing import cluttered_segments, synthetic_observation
 from sim.types import SemanticComponent
-from study.bench.autonomy import cluttered_segments, synthetic_observation
 
 ROBOT = RobotModel.rectangle(0.6, 0.5)
 

@@ -17,14 +17,12 @@ from hypothesis.extra.numpy import arrays
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
 
+from sim.map_files import load_ros_map, save_png, save_ros_map
 from sim.occupancy import (
     OccupancyGrid,
     build_grid,
     clearance_map,
     inflate,
-    load_ros_map,
-    save_png,
-    save_ros_map,
     shortest_path,
 )
 from sim.scenario import Scenario, parse_scenario

@@ -15,14 +15,13 @@ from matplotlib.path import Path as MplPath
 
 from sim.scenario import load_scenario, parse_scenario
 from sim.types import Contact, Pose2D
+from tasks.geometry import footprint_clearance, polygon_distances
 from tasks.primary import (
     CLEARANCE_BIN_EDGES_M,
     EVENT_KINDS,
     PrimaryEvent,
     PrimarySettings,
     PrimaryTask,
-    footprint_clearance,
-    polygon_distances,
     route_from_points,
 )
 

@@ -1,6 +1,6 @@
 """The reactive Bayesian-network mode (autonomy.reactive_bn) and the arbitration it
 uses (autonomy.arbitration): properties for any seed, and the three situations in
-small scenes seen by two simulated 270-degree scanners (study.bench.autonomy)."""
+small scenes seen by two simulated 270-degree scanners (sim.testing)."""
 
 from __future__ import annotations
 
@@ -28,7 +28,7 @@ from autonomy.reactive_bn import (
     situation_posteriors,
 )
 from autonomy.types import RobotModel
-from study.bench.autonomy import box_segments, cluttered_segments, synthetic_observation
+from sim.testing import box_segments, cluttered_segments, synthetic_observation
 
 ROBOT = RobotModel.rectangle(0.6, 0.5)
 SETTINGS = ReactiveSettings()

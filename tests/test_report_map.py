@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from analysis.figures import paths_figure, read_map
-from sim.occupancy import build_grid, save_ros_map
+from sim.map_files import save_ros_map
+from sim.occupancy import build_grid
 from sim.scenario import available_scenarios, load_scenario
 
 

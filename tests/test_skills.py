@@ -1,6 +1,7 @@
-"""Scripted skills and the human stick (tasks/skills.py, tasks/contextual.py): every skill
-performs its task in its demonstration scene from random starts without hitting things,
-always terminates, and the stick is deterministic and within the robot's limits."""
+"""Scripted skills, their guard and the human stick (tasks/skills.py, tasks/guard.py,
+tasks/stick.py, tasks/contextual.py): every skill performs its task in its demonstration
+scene from random starts without hitting things, always terminates, and the stick is
+deterministic and within the robot's limits."""
 
 from __future__ import annotations
 
@@ -24,15 +25,14 @@ from tasks.contextual import (
     TASK_TYPES,
     ContextualTask,
 )
+from tasks.guard import free_ahead
 from tasks.skills import (
     SKILLS,
-    HumanStick,
-    HumanStickSettings,
     SkillSettings,
-    free_ahead,
     make_skill,
     wall_face,
 )
+from tasks.stick import HumanStick, HumanStickSettings
 
 RUNS_PER_TYPE = 2  # per task type in the default run; the slow test records more
 
@@ -387,7 +387,7 @@ def test_human_stick_equals_its_array_formulation_bit_for_bit(seed, scale, delay
 
 
 def _ref_guard(u: np.ndarray, points: np.ndarray, s: SkillSettings) -> np.ndarray:
-    from tasks.skills import _GUARD_OFFSETS, _free_all, _turn_guard
+    from tasks.guard import _GUARD_OFFSETS, _free_all, _turn_guard
 
     if len(points) == 0:
         return u
@@ -408,7 +408,7 @@ def _ref_guard(u: np.ndarray, points: np.ndarray, s: SkillSettings) -> np.ndarra
 
 
 def test_guard_on_the_near_points_equals_the_guard_on_all_of_them(rng):
-    from tasks.skills import guard_command
+    from tasks.guard import guard_command
 
     for _ in range(400):
         s = SkillSettings(
@@ -428,7 +428,7 @@ def test_guard_on_the_near_points_equals_the_guard_on_all_of_them(rng):
 
 
 def test_points_beyond_the_guard_reach_change_nothing(rng):
-    from tasks.skills import _guard_reach, guard_command
+    from tasks.guard import _guard_reach, guard_command
 
     s = SkillSettings(guard_margin=0.03, guard_stop=0.05)
     for _ in range(100):

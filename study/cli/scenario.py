@@ -195,7 +195,8 @@ def write_map(scenario: Scenario, out: str | Path, *, resolution: float = 0.05) 
     dict
         ``{"pgm": path, "yaml": path, "png": path}``; files are named after the scenario.
     """
-    from sim.occupancy import build_grid, save_png, save_ros_map
+    from sim.map_files import save_png, save_ros_map
+    from sim.occupancy import build_grid
 
     if not (math.isfinite(resolution) and resolution > 0):
         raise ValueError(f"--resolution: must be a positive number of metres, got {resolution}")

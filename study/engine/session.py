@@ -75,7 +75,8 @@ from sqlalchemy.orm import Session
 from autonomy.modes import make_mode
 from questionnaires import experience as experience_q
 from questionnaires import nasa_tlx
-from sim.occupancy import build_grid, save_ros_map
+from sim.map_files import save_ros_map
+from sim.occupancy import build_grid
 from sim.scenario import load_scenario
 from sim.semantics import derive_components
 from sim.world import World

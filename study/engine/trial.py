@@ -85,7 +85,8 @@ from sim.world import World
 from study.data.recording import TrialRecorder
 from study.data.storage import Event, Question, Sample, Trial, utc_now
 from study.types import ParticipantInput, ScreenState, TickRecord, TrialInfo
-from tasks.primary import PrimarySettings, PrimaryTask, footprint_clearance
+from tasks.geometry import footprint_clearance
+from tasks.primary import PrimarySettings, PrimaryTask
 from tasks.secondary import SecondaryEvent, SecondarySettings, SecondaryTask, summarise
 
 DT = 0.05  # [s] control tick (20 Hz)

@@ -80,12 +80,11 @@ from tasks.contextual import (
     check_task_type,
 )
 from tasks.skills import (
-    HumanStick,
-    HumanStickSettings,
     SkillSettings,
     make_skill,
     wall_face,
 )
+from tasks.stick import HumanStick, HumanStickSettings
 
 FORMAT_VERSION = 1
 MANIFEST = "manifest.json"

@@ -92,7 +92,9 @@ from study.participants.scripted import (
     uniform_answer,
 )
 from study.types import ParticipantInput, ScreenState, TrialInfo
-from tasks.skills import HumanStick, HumanStickSettings, SkillSettings, guard_command
+from tasks.guard import guard_command
+from tasks.skills import SkillSettings
+from tasks.stick import HumanStick, HumanStickSettings
 
 DT = 0.05  # [s] the control tick the stick model assumes
 DISTRACTIONS: tuple[str, ...] = ("hold", "drift", "release")

@@ -2,8 +2,8 @@
 
 The rows are the outputs of :class:`autonomy.reactive_bn.ReactiveBNMode`,
 :func:`autonomy.dwa.dwa` and :func:`autonomy.safety.safe_command` on 24 fixed synthetic
-cluttered rooms (:func:`study.bench.autonomy.cluttered_segments` and
-:func:`~study.bench.autonomy.synthetic_observation`, drawn from one generator seeded with
+cluttered rooms (:func:`sim.testing.cluttered_segments` and
+:func:`~sim.testing.synthetic_observation`, drawn from one generator seeded with
 :data:`SEED`). ``tests/test_mode_equivalence.py`` recomputes them and compares to
 ``rtol = atol = 1e-12``.
 
@@ -31,8 +31,8 @@ from autonomy.dwa import dwa
 from autonomy.reactive_bn import ReactiveBNMode
 from autonomy.safety import safe_command
 from autonomy.types import RobotModel
+from sim.testing import cluttered_segments, synthetic_observation
 from sim.types import Observation
-from study.bench.autonomy import cluttered_segments, synthetic_observation
 
 SEED = 20261123
 N_CASES = 24

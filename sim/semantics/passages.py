@@ -1,0 +1,127 @@
+"""Passages between obstacle outlines: doorways and gaps (thesis appendix Alg. 5).
+
+For every pair of outlines the closest points are found (the midpoint of a stretch
+of closest points, so a doorway between collinear walls is centred). The pair is a
+passage when its clear width lies in ``scenario.semantics.passage_width`` (line 16),
+the segment between the closest points crosses no other obstacle (the exact
+counterpart of the 95 % free-cells test, lines 21-29), it is an opening rather than
+the side of a corridor (:func:`_passage_depth`), its centre lies within the bounds,
+and the two outlines are not two legs of one table (that opening is the dock).
+Between two walls it is a doorway; with a free-standing obstacle on a side, a gap.
+Passages closer than ``MERGE_DISTANCE_M`` are merged, keeping the narrowest.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from sim.scenario import Scenario
+from sim.semantics.outlines import _EPS_M, _any_hit, _closest_points, _Shape
+
+MERGE_DISTANCE_M = 0.75  # Alg. 5: passages with closer centres are one passage
+MAX_PASSAGE_DEPTH_M = 0.7  # a constriction deeper than this is a corridor [m]
+DEPTH_STEP_M = 0.05  # resolution of the depth probe [m]
+CORRIDOR_PROBE_SLACK_M = 0.2  # probe reach beyond the passage's half width [m]
+_WIDTH_TOL_M = 1e-9
+
+
+@dataclass(frozen=True, slots=True)
+class _Passage:
+    kind: str
+    centre: np.ndarray  # (2,) [m]
+    ends: np.ndarray  # (2, 2) [m], ends[i] on source[i]
+    width: float  # [m]
+    source: tuple[str, str]
+
+
+def _crossing_normal(ends: np.ndarray) -> np.ndarray:
+    """Unit crossing direction (2,) perpendicular to ``ends`` (2, 2) [m], oriented to +x
+    (or +y when the passage runs along x); ``ends[i]`` lies on ``source[i]``."""
+    d = ends[1] - ends[0]
+    n = np.array([-d[1], d[0]]) / np.hypot(*d)
+    if n[0] < -1e-9 or (abs(n[0]) <= 1e-9 and n[1] < 0):
+        n = -n
+    n[np.abs(n) < 1e-12] = 0.0  # no -0.0 or 1e-17 residues in files and prints
+    return n
+
+
+def _passage_depth(shapes: Sequence[_Shape], centre: np.ndarray, ends: np.ndarray) -> float:
+    """How far [m] along the crossing normal the opening stays hemmed in on both sides.
+
+    Probe lines parallel to the passage at offsets of ``DEPTH_STEP_M`` along the
+    normal, reaching ``width / 2 + CORRIDOR_PROBE_SLACK_M`` each way from the axis;
+    the depth is the run of offsets around the passage where both halves hit an
+    obstacle (grazing counts). Stops once the depth exceeds ``MAX_PASSAGE_DEPTH_M``.
+    """
+    along = (ends[1] - ends[0]) / np.hypot(*(ends[1] - ends[0]))
+    normal = np.array([-along[1], along[0]])
+    reach = np.hypot(*(ends[1] - ends[0])) / 2 + CORRIDOR_PROBE_SLACK_M
+    limit = round(MAX_PASSAGE_DEPTH_M / DEPTH_STEP_M)  # count steps: no float drift
+    steps = 0
+    for side in (1.0, -1.0):
+        k = 1
+        while steps <= limit:
+            origin = centre + side * k * DEPTH_STEP_M * normal
+            if not (
+                _any_hit(shapes, origin, origin + reach * along, margin=_EPS_M)
+                and _any_hit(shapes, origin, origin - reach * along, margin=_EPS_M)
+            ):
+                break  # the space widens here
+            k += 1
+            steps += 1
+    return steps * DEPTH_STEP_M
+
+
+def _passages(scenario: Scenario, shapes: list[_Shape]) -> list[_Passage]:
+    lo, hi = scenario.semantics.passage_width
+    (x_min, y_min), (x_max, y_max) = scenario.bounds
+    found: list[_Passage] = []
+    for i, a in enumerate(shapes):
+        for j in range(i + 1, len(shapes)):
+            b = shapes[j]
+            if a.table and a.table == b.table:
+                continue  # between two legs of one table: the dock, not a gap
+            if np.hypot(*(b.centre - a.centre)) - a.radius - b.radius > hi + _WIDTH_TOL_M:
+                continue
+            closest = _closest_points(a, b)
+            if closest is None:
+                continue
+            width, p, q = closest
+            if not lo - _WIDTH_TOL_M <= width <= hi + _WIDTH_TOL_M:  # Alg. 5, line 16
+                continue
+            centre = (p + q) / 2
+            if not (x_min <= centre[0] <= x_max and y_min <= centre[1] <= y_max):
+                continue
+            others = [s for k, s in enumerate(shapes) if k not in (i, j)]
+            if _any_hit(others, p, q):  # Alg. 5, lines 21-29: the opening must be free
+                continue
+            ends = np.vstack((p, q))
+            if _passage_depth(shapes, centre, ends) > MAX_PASSAGE_DEPTH_M + 1e-9:
+                continue  # the side of a corridor, not an opening
+            kind = "doorway" if a.is_wall and b.is_wall else "gap"
+            found.append(_Passage(kind, centre, ends, width, (a.name, b.name)))
+    return _merge(found)
+
+
+def _merge(passages: list[_Passage]) -> list[_Passage]:
+    """Merge passages with centres closer than ``MERGE_DISTANCE_M`` (Alg. 5), keep the
+    narrowest of each single-linkage group."""
+    parent = list(range(len(passages)))
+
+    def root(i: int) -> int:
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+
+    for i, a in enumerate(passages):
+        for j in range(i + 1, len(passages)):
+            if np.hypot(*(passages[j].centre - a.centre)) < MERGE_DISTANCE_M:
+                parent[root(j)] = root(i)
+    groups: dict[int, list[int]] = {}
+    for i in range(len(passages)):
+        groups.setdefault(root(i), []).append(i)
+    return [passages[min(g, key=lambda k: (passages[k].width, k))] for g in groups.values()]
