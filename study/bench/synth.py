@@ -25,10 +25,10 @@ from pathlib import Path
 
 import numpy as np
 
-from study.participants.synthetic import Population, SyntheticParticipant
 from study.engine.protocol import load_protocol
 from study.engine.standalone import standalone_trial
 from study.jobs.synth import run_synthetic_study
+from study.participants.synthetic import Population, SyntheticParticipant
 
 _SEED = 7061
 

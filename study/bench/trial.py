@@ -35,9 +35,9 @@ from typing import Any
 
 import numpy as np
 
-from study.participants import ScriptedParticipant
 from study.engine.standalone import standalone_trial
 from study.engine.trial import TrialWriter
+from study.participants import ScriptedParticipant
 from tasks.secondary import SecondarySettings
 
 MODES = ("manual", "reactive_bn", "contextual_task")
