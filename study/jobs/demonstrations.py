@@ -501,7 +501,7 @@ def resolve_plan(plan: Sequence[tuple[str, str | Scenario]]) -> list[tuple[str, 
 
     Raises ValueError naming the option, scene or file before anything is recorded.
     """
-    from study.cli.scenario import load
+    from study.jobs.scenes import load
 
     jobs = []
     for task_type, scene in plan:
