@@ -314,7 +314,7 @@ def _contextual_figures(observations: list, robot: RobotModel, n: int) -> dict:
     rng = np.random.default_rng(2)
     prepared = []
     for obs, u in observations:
-        comps = tuple(getattr(obs, "components", ()) or ())
+        comps = tuple(obs.components or ())
         if len(comps) < CONTEXTUAL_CANDIDATES:
             extra = _synthetic_components(rng, CONTEXTUAL_CANDIDATES - len(comps))
             obs = dataclasses.replace(obs, components=comps + extra)
