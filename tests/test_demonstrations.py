@@ -1,4 +1,4 @@
-"""Recording and loading demonstrations (study/demonstrations.py) and
+"""Recording and loading demonstrations (study/jobs/demonstrations/) and
 ``asa demonstrations`` (study/cli/demonstrations.py)."""
 
 from __future__ import annotations
@@ -61,7 +61,7 @@ def _rewrite(path: Path, change) -> None:
 def test_plan_recording():
     assert plan_recording("all", None) == [(t, DEFAULT_SCENES[t]) for t in DEMONSTRATED]
     assert plan_recording("gap_crossing", "x") == [("gap_crossing", "x")]
-    with pytest.raises(ValueError, match="--task.*allowed"):
+    with pytest.raises(ValueError, match="task: unknown task type.*allowed"):
         plan_recording("flying", None)
 
 

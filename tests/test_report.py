@@ -191,11 +191,3 @@ def test_bad_input_one_line_exit_2(tmp_path, capsys, seed):
         capsys, "report", "--db", str(empty), "--out", str(tmp_path / "r"), "--metric", "nope"
     )
     assert status == 2 and "'nope' is not known" in err
-
-
-@pytest.mark.slow
-def test_bench_group_quick():
-    from study.bench import run_benchmarks
-
-    figures = run_benchmarks(["report"], quick=True)
-    assert figures["report_s"] > 0 and figures["report_metrics"] >= 10

@@ -457,17 +457,6 @@ def test_close_is_idempotent() -> None:
     assert not pybullet.isConnected(physicsClientId=client)
 
 
-def test_bench_group_reports_its_figures() -> None:
-    from study.bench import sim as bench
-
-    figures = bench.run(quick=True)
-    for key in ("sim_ticks_per_s", "sim_camera_frames_per_s", "sim_ticks_per_s_pybullet_rays"):
-        assert figures[key] > 0
-    assert 0 <= figures["sim_touching_fraction"] <= 1
-    lasers = bench._scene().robot.lasers
-    assert figures["sim_rays_per_tick"] == sum(las.n_beams for las in lasers)
-
-
 @pytest.mark.gui
 def test_gui_world_steps() -> None:
     with World(open_room(), seed=0, settings=WorldSettings(gui=True), components=()) as world:
@@ -475,18 +464,3 @@ def test_gui_world_steps() -> None:
         for _ in range(20):
             world.step()
         assert world.true_velocity()[0] > 0.4
-
-
-@pytest.mark.slow
-def test_trial_bench_group_reports_tick_times_per_mode() -> None:
-    from study.bench import trial as bench
-
-    figures = bench.run(quick=True)
-    for name in bench.MODES:
-        if name == "contextual_task" and f"trial_error_{name}" in figures:
-            continue  # its shipped model is being retrained: the others are still measured
-        tick = figures[f"trial_tick_ms_{name}"]
-        assert 0 < tick["p50"] <= tick["p95"]
-        assert tick["mean"] > 0 and figures[f"trial_tick_cpu_ms_{name}"] > 0
-        assert 0 <= figures[f"trial_mode_ms_{name}"] < tick["mean"]
-    assert figures["trial_tick_ms_mean"] > 0

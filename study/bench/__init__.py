@@ -1,10 +1,10 @@
 """``asa bench``: the single benchmark entry point of the project.
 
-Every performance budget of DESIGN.md is measured here, never asserted in a
-test. A group is a module ``study.bench.<group>`` with a function
-``run(quick: bool) -> dict`` returning flat JSON-ready figures; the results of
-all groups are merged into one JSON object. To add a group, write the module and
-add it to ``GROUPS``.
+Every performance budget of DESIGN.md is measured here, never asserted in a test
+(:mod:`study.bench.budgets` compares the figures with them). A group is a module
+``study.bench.<group>`` with a function ``run(quick: bool) -> dict`` returning flat
+JSON-ready figures; the results of all groups are merged into one JSON object. To add
+a group, write the module and add it to ``GROUPS``.
 """
 
 from __future__ import annotations
@@ -14,6 +14,8 @@ import os
 import platform
 import time
 from collections.abc import Callable
+
+from study.bench.budgets import check_budgets
 
 # group name -> module implementing run(quick) -> dict
 GROUPS: dict[str, str] = {
@@ -26,13 +28,13 @@ GROUPS: dict[str, str] = {
 }
 
 
-def run_benchmarks(
+def measure(
     only: list[str] | None = None,
     *,
     quick: bool = False,
     progress: Callable[[str], None] | None = None,
-) -> dict:
-    """Run the named benchmark groups (all when ``only`` is empty) and merge their figures.
+) -> dict[str, dict]:
+    """Run the named benchmark groups (all when ``only`` is empty): ``{group: figures}``.
 
     Parameters
     ----------
@@ -44,9 +46,22 @@ def run_benchmarks(
     unknown = [n for n in names if n not in GROUPS]
     if unknown:
         raise ValueError(
-            f"asa bench: --only {unknown[0]!r} is not a benchmark group; "
-            f"allowed: {', '.join(GROUPS)}"
+            f"only: {unknown[0]!r} is not a benchmark group; allowed: {', '.join(GROUPS)}"
         )
+    per_group: dict[str, dict] = {}
+    for name in names:
+        if progress is not None:
+            progress(name)
+        start = time.perf_counter()
+        figures = importlib.import_module(GROUPS[name]).run(quick=quick)
+        figures[f"{name}_bench_wall_s"] = round(time.perf_counter() - start, 3)
+        per_group[name] = figures
+    return per_group
+
+
+def merge(per_group: dict[str, dict], *, quick: bool) -> dict:
+    """One JSON-ready object: ``machine``, ``quick``, every group's figures and
+    ``budgets`` (:func:`study.bench.budgets.check_budgets`)."""
     result: dict = {
         "machine": {
             "python": platform.python_version(),
@@ -55,11 +70,17 @@ def run_benchmarks(
         },
         "quick": quick,
     }
-    for name in names:
-        if progress is not None:
-            progress(name)
-        start = time.perf_counter()
-        figures = importlib.import_module(GROUPS[name]).run(quick=quick)
-        figures[f"{name}_bench_wall_s"] = round(time.perf_counter() - start, 3)
+    for figures in per_group.values():
         result.update(figures)
+    result["budgets"] = check_budgets(result, list(per_group))
     return result
+
+
+def run_benchmarks(
+    only: list[str] | None = None,
+    *,
+    quick: bool = False,
+    progress: Callable[[str], None] | None = None,
+) -> dict:
+    """:func:`measure` the groups and :func:`merge` their figures into one object."""
+    return merge(measure(only, quick=quick, progress=progress), quick=quick)

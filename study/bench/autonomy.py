@@ -1,36 +1,9 @@
-"""``asa bench --only autonomy``: timings of the assistance layer (DESIGN.md budgets).
+"""Benchmark group ``autonomy``: timings of the assistance layer (DESIGN.md budgets).
 
-Figures (wall time, BLAS limited to one thread):
-
-- ``reactive_tick_ms`` {p50, p95, p99}: one ``reactive_bn`` tick (environment model,
-  posteriors, the situation's action including the DWA, blending) on observations
-  of the shipped ``cluttered_room`` seen by the simulated robot (``sim.world``)
-  while a scripted driver wanders through it (towards the most open direction)
-  with the reactive mode itself; without ``sim.world`` (or the scene) on a synthetic
-  cluttered room (:func:`cluttered_segments`, two 270-degree scanners as in the
-  scenario defaults).
-- ``dwa_ms`` and ``safety_ms`` {p50, p95}: :func:`autonomy.dwa.dwa` and
-  :func:`autonomy.safety.safe_command` alone on the same observations.
-- ``sogp_updates_per_s``: ``SparseOnlineGP(capacity=500)`` update plus a one-point
-  prediction per second, pre-filled to 500 basis vectors with 7-D inputs (the
-  encoded task feature's size), so updates run at capacity (a novel point then costs
-  a deletion).
-- ``autonomy_observations``: where the observations came from, and
-  ``autonomy_laser_points`` their mean number of laser points.
-
-- ``contextual_tick_ms`` {p50, p95, p99, candidates}: one ``contextual_task`` tick
-  (candidates, recognition, the Alg. 3 rollout, tracking, blending, the safety layer) on
-  the same observations with the same driver's commands, ``candidates`` = 10 semantic
-  components per tick (the scene's nearest ten; observations with fewer get synthetic
-  doorways, objects and walls added), with the shipped model (``contextual_model``:
-  "shipped", or "synthetic" -- a small model trained on
-  :func:`autonomy.training.synthetic_demonstrations` -- when it is missing);
-  ``rollout_ms`` {p50, p95}: the rollout alone, from the same ticks' timings;
-  ``contextual_stage_ms``: the mean of each stage of ``Assist.timings_ms`` (recognition
-  including the candidates, rollout, tracking, safety, total) over the same ticks.
-
-The synthetic room helpers (:func:`cluttered_segments`, :func:`synthetic_observation`)
-are exact 2D ray casting in numpy; the tests of the assistance layer use them too.
+The reactive and contextual-task modes, the DWA, the safety layer and the SOGP, timed
+on observations of the shipped ``cluttered_room`` along a scripted drive (a synthetic
+cluttered room when the scene is not available), BLAS limited to one thread. The
+figures are listed in :func:`run`.
 """
 
 from __future__ import annotations
@@ -138,7 +111,27 @@ def _sogp_rate(quick: bool) -> float:
 
 
 def run(quick: bool) -> dict:
-    """Measure the assistance layer; see the module docstring for the figures."""
+    """Measure the assistance layer (wall time, BLAS limited to one thread).
+
+    Returns
+    -------
+    dict
+        - ``reactive_tick_ms`` {p50, p95, p99}: one ``reactive_bn`` tick (environment
+          model, posteriors, the situation's action including the DWA, blending);
+        - ``dwa_ms``, ``safety_ms`` {p50, p95}: :func:`autonomy.dwa.dwa` and
+          :func:`autonomy.safety.safe_command` alone on the same observations;
+        - ``sogp_updates_per_s``: ``SparseOnlineGP(capacity=500)`` update plus a
+          one-point prediction per second, at capacity, 7-D inputs;
+        - ``autonomy_observations`` (where the observations came from) and
+          ``autonomy_laser_points`` (their mean number of laser points);
+        - ``contextual_tick_ms`` {p50, p95, p99, candidates}: one ``contextual_task``
+          tick (candidates, recognition, the Alg. 3 rollout, tracking, blending, the
+          safety layer) with ``candidates`` = 10 semantic components per tick;
+          ``rollout_ms`` {p50, p95}: the rollout alone; ``contextual_stage_ms``: the
+          mean of each stage of ``Assist.timings_ms``; ``contextual_recognised_share``;
+          ``contextual_model``: "shipped", or "synthetic" when the shipped model is
+          missing.
+    """
     with threadpool_limits(limits=1):
         return _run(quick)
 
@@ -218,7 +211,7 @@ def _contextual_figures(observations: list, robot: RobotModel, n: int) -> dict:
     rng = np.random.default_rng(2)
     prepared = []
     for obs, u in observations:
-        comps = tuple(getattr(obs, "components", ()) or ())
+        comps = tuple(obs.components or ())
         if len(comps) < CONTEXTUAL_CANDIDATES:
             extra = _synthetic_components(rng, CONTEXTUAL_CANDIDATES - len(comps))
             obs = dataclasses.replace(obs, components=comps + extra)

@@ -27,7 +27,7 @@ def _generator():
     path = Path(__file__).resolve().parents[2] / "tests" / "fixtures_db.py"
     if not path.is_file():
         raise ValueError(
-            f"asa bench --only report: needs {path} (the source checkout's test generator)"
+            f"benchmark group 'report': needs {path} (the source checkout's test generator)"
         )
     spec = importlib.util.spec_from_file_location("asa_fixtures_db", path)
     module = importlib.util.module_from_spec(spec)

@@ -1,18 +1,9 @@
 """Benchmark group ``sim``: how fast the world runs a control tick, and renders the camera.
 
-``sim_ticks_per_s`` is control ticks per second of wall time of one full tick as the
-trial loop runs it (``apply`` + ``step`` + ``sense`` with both laser scans, the pose
-estimate and the IMU; camera off; the semantic components are put into the robot frame
-only when a mode reads them, which this driver does not), headless, in the
-cluttered room (or a built-in scene if that is not shipped). A scripted driver
-(:func:`_wander`) steers from the last observation, so the robot roams the room,
-turns and strafes, and only now and then touches something
-(``sim_touching_fraction``: a robot pressed against a wall makes the physics step
-dearer). Also: the median ``step`` and ``sense`` times, the real-time factor at
-the 20 Hz tick, the same tick with pybullet's ``rayTestBatch`` as the laser
-backend for comparison, and ``sim_camera_frames_per_s`` at the scenario's camera
-size (default 320 x 240). ``sim_ticks_per_cpu_s`` divides by the process's CPU time
-instead, which other processes on a busy machine disturb much less."""
+One full tick as the trial loop runs it (``apply`` + ``step`` + ``sense``, camera off),
+headless, in the cluttered room (a built-in room if that is not shipped), steered by a
+scripted driver (:func:`_wander`). The figures are listed in :func:`run`.
+"""
 
 from __future__ import annotations
 
@@ -98,7 +89,23 @@ def _ticks_per_s(world: World, n: int) -> dict:
 
 
 def run(quick: bool) -> dict:
-    """Measure the world; ``quick`` runs fewer ticks and frames."""
+    """Measure the world; ``quick`` runs fewer ticks and frames.
+
+    Returns
+    -------
+    dict
+        ``sim_ticks_per_s``: control ticks per wall second (both laser scans, the pose
+        estimate and the IMU; the semantic components are put into the robot frame only
+        when a mode reads them, which this driver does not); ``sim_ticks_per_cpu_s`` the
+        same per CPU second of this process (less disturbed by other processes);
+        ``sim_step_ms``, ``sim_sense_ms``: median times; ``sim_real_time_factor`` at the
+        20 Hz tick; ``sim_touching_fraction``: ticks in contact (a robot pressed against a
+        wall makes the physics step dearer); ``sim_ticks_per_s_pybullet_rays`` and
+        ``sim_sense_ms_pybullet_rays`` with pybullet's ``rayTestBatch`` as the laser
+        backend, for comparison; ``sim_camera_frames_per_s`` at the scenario's camera
+        size (``sim_camera_size``, default 320 x 240); ``sim_scene``,
+        ``sim_rays_per_tick``, ``sim_components``.
+    """
     scenario = _scene()
     n_ticks, n_frames = (300, 5) if quick else (3000, 40)
     figures: dict = {"sim_scene": scenario.name}

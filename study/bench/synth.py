@@ -1,20 +1,8 @@
 """Benchmark group ``synth``: synthetic participants and whole synthetic studies (issue 6).
 
-Figures:
-
-- ``synthetic_trial_realtime_factor``: simulated seconds per wall second of one thesis
-  main trial (cluttered room, A -> B -> A with the inspection, secondary questions) in
-  the contextual-task mode, driven by a synthetic participant, with SQLite logging and the
-  rerun recording, in this one process (budget: above 50). ``synthetic_trial_cpu_factor``
-  is the same per CPU second of this process (less disturbed by other processes on a busy
-  machine), ``synthetic_trial_simulated_s`` the trial's simulated length;
-- ``synthetic_study_s``: wall seconds of :func:`study.jobs.synth.run_synthetic_study` of the
-  thesis protocol with 2 workers, recordings included, for
-  ``synthetic_study_participants`` participants: 18, or 2 with ``--quick``
-  (budget for 18, with the report: under 5 minutes on 2 cores).
-
-With ``--quick`` the trial is cut at 30 simulated seconds (``synthetic_trial_simulated_s``
-says so).
+One thesis main trial driven by a synthetic participant in the contextual-task mode, then
+a synthetic study of the thesis protocol with 2 workers. The figures are listed in
+:func:`run`.
 """
 
 from __future__ import annotations
@@ -25,10 +13,10 @@ from pathlib import Path
 
 import numpy as np
 
-from study.participants.synthetic import Population, SyntheticParticipant
 from study.engine.protocol import load_protocol
 from study.engine.standalone import standalone_trial
 from study.jobs.synth import run_synthetic_study
+from study.participants.synthetic import Population, SyntheticParticipant
 
 _SEED = 7061
 
@@ -68,7 +56,22 @@ def _trial(folder: Path, timeout_s: float) -> dict:
 
 
 def run(quick: bool) -> dict:
-    """One synthetic main trial, then a synthetic study (2 participants with ``quick``)."""
+    """One synthetic main trial, then a synthetic study (2 participants with ``quick``).
+
+    Returns
+    -------
+    dict
+        ``synthetic_trial_realtime_factor``: simulated seconds per wall second of one
+        thesis main trial (cluttered room, A -> B -> A with the inspection, secondary
+        questions) in the contextual-task mode, with SQLite logging and the rerun
+        recording, in this one process; ``synthetic_trial_cpu_factor`` the same per CPU
+        second of this process; ``synthetic_trial_simulated_s`` the trial's simulated
+        length (with ``quick`` the trial is cut at 30 s); ``synthetic_trial_completed``;
+        or ``synthetic_trial_error``. ``synthetic_study_s``: wall seconds of
+        :func:`study.jobs.synth.run_synthetic_study` of the thesis protocol with 2
+        workers, recordings included, for ``synthetic_study_participants`` participants
+        (18, or 2 with ``quick``); ``synthetic_study_protocol``.
+    """
     figures: dict = {}
     with tempfile.TemporaryDirectory(prefix="asa-bench-synth-") as tmp:
         folder = Path(tmp)

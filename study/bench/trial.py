@@ -1,30 +1,10 @@
-"""Benchmark group ``trial``: the cost of one whole control tick of a synthetic trial.
+"""Benchmark group ``trial``: the cost of one whole control tick of a trial (DESIGN.md,
+"One control tick", "Performance budgets").
 
-DESIGN.md ("One control tick", "Performance budgets"): a full 18-participant synthetic
-study of the thesis protocol must run in under 5 minutes on 2 cores, about 30 core-seconds
-per participant for 15-18k ticks, so a whole tick must average about 2 ms. This group
-measures that tick as the session engine runs it: :func:`study.engine.trial.run_trial` on the
-cluttered room's main trial (route A -> B -> A with the inspection, secondary questions in
-the region) with the scripted participant
-(:class:`study.participants.ScriptedParticipant`), SQLite logging and the rerun recording,
-once per mode, for the first ``segment_s`` simulated seconds.
-
-Figures per mode ``<m>`` (``manual``, ``reactive_bn``, ``contextual_task``):
-
-- ``trial_tick_ms_<m>``: ``{p50, p95, mean}`` of the wall time [ms] between successive
-  ticks (the participant, the mode, the world, the tasks, the sample buffering, the
-  recording and the batched database flushes: everything the loop does);
-- ``trial_tick_cpu_ms_<m>``: the mean process CPU time [ms] per tick (rerun's encoder
-  threads included), which other processes on a busy machine disturb much less;
-- ``trial_mode_ms_<m>``: the mean wall time [ms] of ``mode.step`` alone, so the modes'
-  share of the tick is visible;
-- ``trial_error_<m>`` instead, when the mode cannot be built or run (say, a shipped
-  model file of another format version), so the other modes are still measured.
-
-``trial_tick_ms_mean`` and ``trial_tick_cpu_ms_mean`` average the modes (equal weights,
-as a participant drives each mode once). The first tick of each trial (planning, the
-recording's static scene) is left out, as is the trial's set-up and its completing
-transaction.
+:func:`study.engine.trial.run_trial` on the cluttered room's main trial (A -> B -> A with
+the inspection, secondary questions) with the scripted participant, SQLite logging and
+the rerun recording, once per mode, for the first ``segment_s`` simulated seconds. The
+figures are listed in :func:`run`.
 """
 
 from __future__ import annotations
@@ -35,9 +15,9 @@ from typing import Any
 
 import numpy as np
 
-from study.participants import ScriptedParticipant
 from study.engine.standalone import standalone_trial
 from study.engine.trial import TrialWriter
+from study.participants import ScriptedParticipant
 from tasks.secondary import SecondarySettings
 
 MODES = ("manual", "reactive_bn", "contextual_task")
@@ -104,7 +84,24 @@ def _measure(
 
 
 def run(quick: bool) -> dict:
-    """Run a scripted main-trial segment per mode; ``quick`` runs 10 s instead of 60 s."""
+    """Run a scripted main-trial segment per mode; ``quick`` runs 10 s instead of 60 s.
+
+    The first tick of each trial (planning, the recording's static scene), the set-up
+    and the completing transaction are left out.
+
+    Returns
+    -------
+    dict
+        Per mode ``<m>`` (``manual``, ``reactive_bn``, ``contextual_task``):
+        ``trial_tick_ms_<m>`` {p50, p95, mean}: wall time [ms] between successive ticks
+        (participant, mode, world, tasks, sample buffering, recording, batched database
+        flushes); ``trial_tick_cpu_ms_<m>``: mean process CPU time [ms] per tick (rerun's
+        encoder threads included; less disturbed by other processes);
+        ``trial_mode_ms_<m>``: mean wall time [ms] of ``mode.step`` alone; or
+        ``trial_error_<m>`` when the mode cannot be built or run. ``trial_tick_ms_mean``
+        and ``trial_tick_cpu_ms_mean`` average the modes with equal weights (a
+        participant drives each mode once).
+    """
     segment_s = 10.0 if quick else 60.0
     figures: dict = {"trial_scene": "cluttered_room", "trial_segment_s": segment_s}
     means, cpu_means = [], []

@@ -10,8 +10,6 @@ its worker process, the scripted participant's decisions injected as gamepad eve
 - ``ui_camera_fps``: camera images shown per second (>= 15);
 - ``tick_jitter_ms``: the trial's stored ``trial.tick_jitter_ms``, the 99th percentile of
   ``|period - 50 ms|`` (DESIGN.md: the tick must keep its period);
-
-:func:`headless_trial` is also what the tests of the interface use (with a free clock).
 """
 
 from __future__ import annotations
@@ -19,48 +17,10 @@ from __future__ import annotations
 import os
 import tempfile
 from pathlib import Path
-from typing import Any
 
-from sqlalchemy.engine import Engine
 from sqlalchemy.orm import Session
 
-
-def headless_trial(
-    folder: Path,
-    participant: Any,
-    *,
-    seconds: float,
-    clock: Any = None,
-    scenario: str = "cluttered_room",
-    phase: str = "training",
-    mode: str = "manual",
-    secondary: bool = True,
-    seed: int = 0,
-    control: Any = None,
-    on_tick: Any = None,
-    camera_hz: float = 0.0,
-) -> tuple[Any, Engine]:
-    """One driving trial of ``seconds`` simulated seconds (A -> B -> A, no inspection) in a
-    fresh database in ``folder``, camera frames in its recording at ``camera_hz``; returns
-    ``(TrialResult, engine)`` (:func:`study.engine.standalone.standalone_trial`)."""
-    from study.engine.standalone import standalone_trial
-    from tasks.secondary import SecondarySettings
-
-    return standalone_trial(
-        folder,
-        participant,
-        mode=mode,
-        scenario=scenario,
-        phase=phase,
-        timeout_s=seconds,
-        secondary=SecondarySettings() if secondary else None,
-        seed=seed,
-        camera_hz=camera_hz,
-        clock=clock,
-        control=control,
-        on_tick=on_tick,
-        database="ui.db",
-    )
+from study.ui.headless import headless_trial
 
 
 def run(quick: bool = False) -> dict:
@@ -69,10 +29,10 @@ def run(quick: bool = False) -> dict:
     os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
     import numpy as np
 
+    from study.data.storage import Trial
+    from study.engine.protocol import load_protocol
     from study.participants.human import HumanParticipant
     from study.participants.scripted import ScriptedParticipant
-    from study.engine.protocol import load_protocol
-    from study.data.storage import Trial
     from study.ui.inject import EventDriver
     from study.ui.input import GamepadMapping
 

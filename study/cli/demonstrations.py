@@ -12,10 +12,11 @@ from __future__ import annotations
 import json
 import sys
 import time
+from pathlib import Path
 
 import click
 
-from tasks.contextual import DEMONSTRATED, TASK_TYPES
+from tasks.contextual import DEMONSTRATED, TASK_TYPES, check_task_type
 
 
 @click.group()
@@ -59,9 +60,13 @@ def record(task: str, scene: str | None, runs: int, out: str, seed: int) -> None
 
     if runs < 1:
         raise ValueError(f"--runs: must be at least 1, got {runs}")
+    if task != "all":
+        check_task_type(task, field="--task")
     plan = resolve_plan(plan_recording(task, scene))  # bad input fails before the bar
     began = time.perf_counter()
     with click.progressbar(length=len(plan) * runs, label="recording", file=sys.stderr) as bar:
+        if Path(out).exists() and not Path(out).is_dir():
+            raise ValueError(f"{out}: --out must be a directory")
         manifest = record_demonstrations(out, plan, runs, seed=seed, progress=bar.update)
     jobs = {(t, s.name) for t, s in plan}
     written = [r for r in manifest["runs"] if (r["task"], r["scene"]) in jobs and r["run"] < runs]

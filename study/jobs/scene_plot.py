@@ -1,6 +1,6 @@
 """A scenario drawn as one readable figure: map, obstacles, poses, region, components.
 
-Used by ``asa scenario show --png``. The look follows the thesis: the occupancy
+Used by ``asa scenario show`` to write its PNG. The look follows the thesis: the occupancy
 grid as background with the question region shaded blue (Fig. 7.48b);
 doorways red, gaps orange, the dock green, object surface points blue and wall
 surface points violet (Fig. 7.26, 7.29, 7.49).
@@ -84,17 +84,7 @@ def draw_scene(
     ax.set_title(title if len(title) < 110 else title[:107] + "...", fontsize=10)
 
     if occupied is not None and extent is not None:
-        ax.imshow(
-            np.asarray(occupied, dtype=float),
-            origin="lower",
-            extent=extent,
-            cmap=ListedColormap(["#ffffff", "#b5b5b5"]),
-            vmin=0.0,
-            vmax=1.0,
-            interpolation="nearest",
-            zorder=0,
-        )
-
+        _draw_grid(ax, occupied, extent)
     if len(scenario.question_region) >= 3:
         ax.add_patch(
             Polygon(
@@ -114,7 +104,27 @@ def draw_scene(
     if scenario.dock is not None:
         pose = scenario.dock.pose
         _draw_pose(ax, pose.x, pose.y, pose.yaw, "B", span)
+    _draw_legend(ax)
+    fig.tight_layout()
+    return fig
 
+
+def _draw_grid(ax, occupied: np.ndarray, extent: tuple[float, float, float, float]) -> None:
+    """The occupancy grid (rows, cols) as the background, occupied cells grey."""
+    ax.imshow(
+        np.asarray(occupied, dtype=float),
+        origin="lower",
+        extent=extent,
+        cmap=ListedColormap(["#ffffff", "#b5b5b5"]),
+        vmin=0.0,
+        vmax=1.0,
+        interpolation="nearest",
+        zorder=0,
+    )
+
+
+def _draw_legend(ax) -> None:
+    """The legend, outside the axes on the right."""
     handles = [
         Patch(facecolor="#b5b5b5", edgecolor="none", label="occupied (grid)"),
         Patch(facecolor="none", edgecolor=COLOURS["obstacle"], label="obstacle outline"),
@@ -143,8 +153,6 @@ def draw_scene(
         framealpha=0.95,
         borderaxespad=0.0,
     )
-    fig.tight_layout()
-    return fig
 
 
 def _draw_obstacles(ax, scenario: Scenario) -> None:
@@ -183,6 +191,13 @@ def _draw_obstacles(ax, scenario: Scenario) -> None:
                 zorder=2,
             )
         )
+    _draw_tables(ax, scenario)
+    if scenario.inspection_object:
+        _label_inspection(ax, scenario)
+
+
+def _draw_tables(ax, scenario: Scenario) -> None:
+    """Each table's top as a dashed outline, its legs filled."""
     for table in scenario.tables:
         hx, hy = table.size[0] / 2, table.size[1] / 2
         c, s = math.cos(table.yaw), math.sin(table.yaw)
@@ -210,18 +225,20 @@ def _draw_obstacles(ax, scenario: Scenario) -> None:
                     zorder=2,
                 )
             )
-    if scenario.inspection_object:
-        element = scenario.element(scenario.inspection_object)
-        ax.annotate(
-            f"inspect: {element.name}",
-            xy=element.centre,
-            xytext=(12, -16),
-            textcoords="offset points",
-            color=COLOURS["inspection"],
-            fontsize=8,
-            fontweight="bold",
-            zorder=6,
-        )
+
+
+def _label_inspection(ax, scenario: Scenario) -> None:
+    element = scenario.element(scenario.inspection_object)
+    ax.annotate(
+        f"inspect: {element.name}",
+        xy=element.centre,
+        xytext=(12, -16),
+        textcoords="offset points",
+        color=COLOURS["inspection"],
+        fontsize=8,
+        fontweight="bold",
+        zorder=6,
+    )
 
 
 def _draw_components(ax, components: Sequence[SemanticComponent]) -> None:

@@ -1,0 +1,109 @@
+"""The performance budgets of DESIGN.md ("Performance budgets"), checked against the figures."""
+
+from __future__ import annotations
+
+import operator
+from dataclasses import dataclass
+from typing import Any
+
+_OPS = {"<": operator.lt, "<=": operator.le, ">": operator.gt, ">=": operator.ge}
+
+
+@dataclass(frozen=True, slots=True)
+class Budget:
+    """One budget: ``figure <op> budget``, measured by benchmark group ``group``.
+
+    ``figure`` is a key of the figures, ``"key.sub"`` for an entry of a nested figure;
+    ``applies`` (a figure and its value) says when the run measures what the budget is
+    about (e.g. 18 participants), otherwise ``met`` is ``None``.
+    """
+
+    group: str
+    figure: str
+    op: str  # one of _OPS
+    budget: float
+    applies: tuple[str, Any] | None = None
+
+
+BUDGETS: tuple[Budget, ...] = (
+    # contextual-task mode, one tick with 10 candidates, p95 [ms]
+    Budget("autonomy", "contextual_tick_ms.p95", "<", 5.0),
+    # SOGP update plus prediction at capacity 500 [1/s]
+    Budget("autonomy", "sogp_updates_per_s", ">", 2000.0),
+    # headless synthetic trial with logging: simulated s per wall s
+    Budget("synth", "synthetic_trial_realtime_factor", ">=", 50.0),
+    # 18-participant, 3-mode synthetic study on 2 cores [s]
+    Budget("synth", "synthetic_study_s", "<", 180.0, applies=("synthetic_study_participants", 18)),
+    # headless synthetic trial without recordings: no group measures it yet
+    Budget("trial", "trial_no_recordings_realtime_factor", ">=", 200.0),
+    # the participant's screen [frames/s] and the tick's period [ms]
+    Budget("ui", "ui_fps", ">=", 30.0),
+    Budget("ui", "ui_camera_fps", ">=", 15.0),
+    Budget("ui", "tick_jitter_ms", "<=", 5.0),
+)
+
+
+def _value(figures: dict, name: str) -> Any:
+    key, _, sub = name.partition(".")
+    value = figures.get(key)
+    if sub:
+        value = value.get(sub) if isinstance(value, dict) else None
+    return value
+
+
+def check_budgets(figures: dict, groups: list[str]) -> dict[str, dict[str, Any]]:
+    """The budgets of the groups that ran, against ``figures``.
+
+    Parameters
+    ----------
+    figures : the merged figures of :func:`study.bench.run_benchmarks`.
+    groups : the names of the groups that ran.
+
+    Returns
+    -------
+    dict
+        ``{figure: {"value", "budget", "op", "met"}}``; ``value`` and ``met`` are ``None``
+        when the figure is missing, ``met`` also when the budget does not apply to the run.
+    """
+    out: dict[str, dict[str, Any]] = {}
+    for b in BUDGETS:
+        if b.group not in groups:
+            continue
+        value = _value(figures, b.figure)
+        applies = b.applies is None or figures.get(b.applies[0]) == b.applies[1]
+        measured = isinstance(value, int | float) and not isinstance(value, bool)
+        met = bool(_OPS[b.op](value, b.budget)) if measured and applies else None
+        out[b.figure] = {"value": value, "budget": b.budget, "op": b.op, "met": met}
+    return out
+
+
+def table_rows(
+    per_group: dict[str, dict], budgets: dict[str, dict[str, Any]]
+) -> list[tuple[str, str, Any, str, str]]:
+    """Rows ``(group, figure, value, budget, met)`` for a table, group by group.
+
+    ``budget`` reads like ``"< 5"`` and ``met`` is ``"yes"``, ``"no"`` or ``"n/a"``
+    (both ``""`` for a figure without a budget); a budget whose figure is missing has
+    the value ``None``. Nested budgets (``"key.sub"``) follow their figure.
+    """
+    rows: list[tuple[str, str, Any, str, str]] = []
+
+    def add(group: str, name: str, value: Any) -> None:
+        b = budgets.get(name)
+        if b is None:
+            rows.append((group, name, value, "", ""))
+            return
+        met = "n/a" if b["met"] is None else "yes" if b["met"] else "no"
+        rows.append((group, name, value, f"{b['op']} {b['budget']:g}", met))
+
+    for group, figures in per_group.items():
+        own = [b.figure for b in BUDGETS if b.group == group and b.figure in budgets]
+        for key in sorted(figures):
+            add(group, key, figures[key])
+            for name in own:
+                if name.startswith(key + "."):
+                    add(group, name, budgets[name]["value"])
+        for name in own:
+            if name.partition(".")[0] not in figures:
+                add(group, name, None)
+    return rows
