@@ -18,6 +18,7 @@ from sim.scenario import load_scenario
 from sim.semantics import derive_components
 from sim.world import World
 from study.participants import ScriptedParticipant
+from study.participants.base import ParticipantBase
 from study.data.storage import Event, Participant, Sample, SessionRow, Study, Trial, open_database
 from study.engine.trial import (
     FLUSH_EVERY_TICKS,
@@ -117,7 +118,7 @@ def test_flush_every_simulated_second_and_one_completing_transaction(tmp_path, s
     scripted = ScriptedParticipant(np.random.default_rng(seed))
     screens = []
 
-    class Watching:
+    class Watching(ParticipantBase):
         kind, parameters = "scripted", {}
         begin_trial = scripted.begin_trial
 
@@ -147,7 +148,7 @@ def test_flush_every_simulated_second_and_one_completing_transaction(tmp_path, s
     engine.dispose()
 
 
-class PausingParticipant:
+class PausingParticipant(ParticipantBase):
     """Presses pause at tick 5, and again after being shown 7 paused screens."""
 
     kind = "scripted"

@@ -16,6 +16,7 @@ from autonomy.modes import available_modes
 from sim.scenario import load_scenario
 from sim.world import World
 from study.bench.ui import headless_trial
+from study.participants.base import ParticipantBase
 from study.participants.human import HumanParticipant
 from study.engine.protocol import load_protocol
 from study.data.storage import Event, Sample
@@ -82,7 +83,7 @@ class KeyDriver:
             )
 
 
-class Constant:
+class Constant(ParticipantBase):
     """A participant who always pushes the same command (and never answers)."""
 
     kind = "scripted"

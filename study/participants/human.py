@@ -48,6 +48,7 @@ from questionnaires import nasa_tlx
 from sim.occupancy import OccupancyGrid, build_grid
 from sim.types import Observation
 from study.engine.protocol import InputSettings, UiSettings
+from study.participants.base import ParticipantBase
 from study.types import ParticipantInput, ScreenState, TrialInfo
 from study.ui.camera import CameraFeed
 from study.ui.clock import UiClock
@@ -93,7 +94,7 @@ def _route_text(info: TrialInfo) -> str:
     return text.strip()
 
 
-class HumanParticipant:
+class HumanParticipant(ParticipantBase):
     """A participant at the pygame screen.
 
     Parameters
@@ -120,6 +121,7 @@ class HumanParticipant:
     """
 
     kind = "human"
+    shows_camera = True  # the recording logs the image on the screen (camera_image)
 
     def __init__(
         self,

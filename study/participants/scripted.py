@@ -44,6 +44,7 @@ import numpy as np
 from sim.occupancy import OccupancyGrid, build_grid, clearance_map, inflate, shortest_path
 from sim.scenario import Cylinder, Scenario
 from sim.types import Observation, Pose2D, wrap_angle
+from study.participants.base import ParticipantBase
 from study.types import ParticipantInput, ScreenState, TrialInfo
 
 _QUESTION = re.compile(r"^\s*(\d+)\s*([+-])\s*(\d+)\s*=\s*(\d+)")
@@ -143,7 +144,7 @@ def answer_is_correct(text: str) -> bool:
     return (a + b if op == "+" else a - b) == shown
 
 
-class ScriptedParticipant:
+class ScriptedParticipant(ParticipantBase):
     """A deterministic test driver behind the participant interface.
 
     Parameters

@@ -84,6 +84,7 @@ import numpy as np
 from questionnaires import nasa_tlx
 from sim.semantics import derive_components
 from sim.types import Observation, SemanticComponent, wrap_angle
+from study.participants.base import ParticipantBase
 from study.participants.scripted import (
     ScriptedParticipant,
     ScriptedSettings,
@@ -330,7 +331,7 @@ def _nearby(components: Sequence[SemanticComponent]) -> _Nearby | None:
     return near, np.vstack([c.points for c in near]), starts, tangents
 
 
-class SyntheticParticipant:
+class SyntheticParticipant(ParticipantBase):
     """A synthetic person behind the participant interface (see the module docstring).
 
     Parameters
