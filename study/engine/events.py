@@ -101,8 +101,8 @@ class TrialWriter:
 
     def flush(self, tick: int) -> None:
         """Write what is buffered in one transaction (kept for a retry if it fails)."""
-        # a Core connection: the same rows and transaction as an ORM session, about a
-        # third of the cost per flush (no unit of work for plain executemany inserts)
+        # a Core connection: the same rows and transaction as an ORM session, cheaper
+        # (no unit of work for plain executemany inserts; docs/results.md)
         with self.engine.begin() as conn:
             self._write(conn)
         self._clear()
