@@ -17,8 +17,6 @@ from sim.occupancy import build_grid
 from sim.scenario import load_scenario
 from sim.semantics import derive_components
 from sim.world import World
-from study.participants import ScriptedParticipant
-from study.participants.base import ParticipantBase
 from study.data.storage import Event, Participant, Sample, SessionRow, Study, Trial, open_database
 from study.engine.trial import (
     FLUSH_EVERY_TICKS,
@@ -28,6 +26,8 @@ from study.engine.trial import (
     WallClock,
     run_trial,
 )
+from study.participants import ScriptedParticipant
+from study.participants.base import ParticipantBase
 from study.types import ParticipantInput
 from tasks.primary import PrimarySettings
 

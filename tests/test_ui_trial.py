@@ -16,10 +16,10 @@ from autonomy.modes import available_modes
 from sim.scenario import load_scenario
 from sim.world import World
 from study.bench.ui import headless_trial
+from study.data.storage import Event, Sample
+from study.engine.protocol import load_protocol
 from study.participants.base import ParticipantBase
 from study.participants.human import HumanParticipant
-from study.engine.protocol import load_protocol
-from study.data.storage import Event, Sample
 from study.types import ParticipantInput, ScreenState, TrialInfo
 from study.ui.camera import CameraFeed
 from study.ui.inject import VIRTUAL_ID, EventDriver, post_device, post_key
