@@ -13,10 +13,10 @@ from typing import Any
 import numpy as np
 
 from autonomy.modes import register
-from autonomy.types import EMPTY_PATH, Assist, RobotModel
+from autonomy.types import EMPTY_PATH, Assist, Mode, RobotModel
 
 
-class ManualMode:
+class ManualMode(Mode):
     """``v = u``: no assistance."""
 
     name = "manual"

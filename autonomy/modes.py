@@ -59,7 +59,30 @@ def make_mode(name: str, **settings: Any) -> Mode:
     factory = MODES.get(name)
     if factory is None:
         raise ValueError(f"unknown mode {name!r}; registered modes: {', '.join(available_modes())}")
-    return factory(**settings)
+    return with_defaults(factory(**settings))
+
+
+def with_defaults(mode: Any) -> Mode:
+    """``mode`` with every hook :class:`autonomy.types.Mode` declares: ``mode`` itself if it
+    has them all, else a view of it that adds the defaults of the missing ones (a mode
+    class that does not subclass ``Mode``, e.g. one from another package)."""
+    return mode if isinstance(mode, Mode) else _WithDefaults(mode)
+
+
+class _WithDefaults(Mode):
+    """A mode with :class:`Mode`'s defaults for the hooks it lacks; its own members
+    (``name``, ``settings``, ...) pass through."""
+
+    def __init__(self, mode: Any) -> None:
+        self.mode = mode
+        # its bound methods, so that a tick calls them without an extra call
+        self.reset = mode.reset
+        self.step = mode.step
+
+    def __getattr__(self, attr: str) -> Any:
+        if attr == "mode":  # not set yet
+            raise AttributeError(attr)
+        return getattr(self.mode, attr)
 
 
 def settings_from(cls: type[S], values: dict[str, Any], *, where: str) -> S:

@@ -144,7 +144,10 @@ class Assist:
 
 @runtime_checkable
 class Mode(Protocol):
-    """A control mode: found by name in :mod:`autonomy.modes`, driven once per tick."""
+    """A control mode: found by name in :mod:`autonomy.modes`, driven once per tick.
+
+    A mode class may subclass it to inherit the default of :meth:`label_tasks`.
+    """
 
     name: str
 
@@ -155,3 +158,9 @@ class Mode(Protocol):
     def step(self, obs: Any, u: np.ndarray) -> Assist:
         """One control tick: observation and joystick command ``u`` (3,) -> :class:`Assist`."""
         ...
+
+    def label_tasks(self) -> dict[str, str] | None:
+        """What the mode's labels stand for: label -> contextual task type (stored with each
+        trial so the analysis scores recognition from the data alone); None (the default,
+        for a class that subclasses :class:`Mode`): the labels are no task types."""
+        return None

@@ -6,11 +6,6 @@ DESIGN.md ("One control tick"): the observation (``sim.types``), the input, the 
 output (``autonomy.types``) and the tick record are small frozen dataclasses passed by
 value. Thesis sections 7.5 and 7.6: the participant is never told which control mode is
 active, so no type here has a field for the mode's name.
-
-Decision where the spec is silent: :class:`TrialInfo` is what the instructions of a trial
-say (where to drive, whether to inspect, the time limit). A human reads it on the screen
-(``ScreenState.instruction``); a scripted or synthetic participant receives it as a value
-through ``Participant.begin_trial`` so it does not have to parse text.
 """
 
 from __future__ import annotations

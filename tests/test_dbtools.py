@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 from study.data.dbtools import check, export
-from study.participants import ScriptedParticipant
 from study.engine.protocol import load_protocol
 from study.engine.session import run_session
+from study.participants import ScriptedParticipant
 
 PROTOCOL = """
 [study]

@@ -14,9 +14,6 @@ from sqlalchemy import select, text
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
-from study.participants import ScriptedParticipant
-from study.engine.protocol import parse_protocol
-from study.engine.session import run_session
 from study.data.storage import (
     Event,
     Participant,
@@ -26,7 +23,10 @@ from study.data.storage import (
     Trial,
     open_database,
 )
+from study.engine.protocol import parse_protocol
+from study.engine.session import run_session
 from study.engine.trial import TrialSpec, TrialWriter, recording_relpath
+from study.participants import ScriptedParticipant
 from tasks.primary import PrimarySettings
 
 PROTOCOL = """

@@ -18,10 +18,10 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from study.data.dbtools import check
-from study.participants import ScriptedParticipant
+from study.data.storage import SessionRow, Trial, open_database
 from study.engine.protocol import load_protocol
 from study.engine.session import run_session
-from study.data.storage import SessionRow, Trial, open_database
+from study.participants import ScriptedParticipant
 
 PROTOCOL = """
 [study]

@@ -18,9 +18,6 @@ from sqlalchemy.orm import Session
 from autonomy.modes import available_modes
 from questionnaires import nasa_tlx
 from study.data.dbtools import check, export
-from study.participants import ScriptedParticipant
-from study.engine.protocol import load_protocol
-from study.engine.session import run_session
 from study.data.storage import (
     Event,
     Participant,
@@ -32,7 +29,10 @@ from study.data.storage import (
     Trial,
     open_database,
 )
+from study.engine.protocol import load_protocol
+from study.engine.session import run_session
 from study.engine.trial import ExperimenterControl
+from study.participants import ScriptedParticipant
 from study.types import ScreenState
 
 FAST = """

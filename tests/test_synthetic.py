@@ -20,6 +20,8 @@ from questionnaires import nasa_tlx
 from sim.scenario import load_scenario
 from sim.semantics import derive_components
 from sim.world import World
+from study.data.storage import Sample
+from study.engine.standalone import standalone_trial
 from study.participants import (
     Participant,
     ParticipantParams,
@@ -29,8 +31,6 @@ from study.participants import (
     tlx_ratings,
 )
 from study.participants.synthetic import DISTRACTIONS, TLX_ORDER
-from study.engine.standalone import standalone_trial
-from study.data.storage import Sample
 from study.types import ScreenState, TrialInfo
 from tasks.contextual import TASK_TYPES
 

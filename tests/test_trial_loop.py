@@ -17,7 +17,6 @@ from sim.occupancy import build_grid
 from sim.scenario import load_scenario
 from sim.semantics import derive_components
 from sim.world import World
-from study.participants import ScriptedParticipant
 from study.data.storage import Event, Participant, Sample, SessionRow, Study, Trial, open_database
 from study.engine.trial import (
     FLUSH_EVERY_TICKS,
@@ -27,6 +26,8 @@ from study.engine.trial import (
     WallClock,
     run_trial,
 )
+from study.participants import ScriptedParticipant
+from study.participants.base import ParticipantBase
 from study.types import ParticipantInput
 from tasks.primary import PrimarySettings
 
@@ -117,7 +118,7 @@ def test_flush_every_simulated_second_and_one_completing_transaction(tmp_path, s
     scripted = ScriptedParticipant(np.random.default_rng(seed))
     screens = []
 
-    class Watching:
+    class Watching(ParticipantBase):
         kind, parameters = "scripted", {}
         begin_trial = scripted.begin_trial
 
@@ -147,7 +148,7 @@ def test_flush_every_simulated_second_and_one_completing_transaction(tmp_path, s
     engine.dispose()
 
 
-class PausingParticipant:
+class PausingParticipant(ParticipantBase):
     """Presses pause at tick 5, and again after being shown 7 paused screens."""
 
     kind = "scripted"

@@ -15,10 +15,10 @@ from sqlalchemy.orm import Session
 
 from questionnaires import experience, nasa_tlx
 from questionnaires.base import DECLINE
+from study.data.storage import Response, open_database
+from study.engine.protocol import load_protocol
 from study.participants import ScriptedParticipant
 from study.participants.human import HumanParticipant
-from study.engine.protocol import load_protocol
-from study.data.storage import Response, open_database
 from study.ui.camera import CameraFeed
 from study.ui.forms import FormState, FormView
 from study.ui.inject import EventDriver, form_keys

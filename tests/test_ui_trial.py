@@ -17,6 +17,7 @@ from sim.scenario import load_scenario
 from sim.world import World
 from study.data.storage import Event, Sample
 from study.engine.protocol import load_protocol
+from study.participants.base import ParticipantBase
 from study.participants.human import HumanParticipant
 from study.types import ParticipantInput, ScreenState, TrialInfo
 from study.ui.camera import CameraFeed
@@ -82,7 +83,7 @@ class KeyDriver:
             )
 
 
-class Constant:
+class Constant(ParticipantBase):
     """A participant who always pushes the same command (and never answers)."""
 
     kind = "scripted"

@@ -1,7 +1,7 @@
 """``asa run``: one participant's session of a protocol, by a person at the pygame screen,
 or by a scripted or synthetic participant, with or without the screen.
 
-A thin shell over :func:`study.engine.session.run_session`; prints one experimenter line per
+A thin shell over :func:`study.engine.launch.run_participant`; prints one experimenter line per
 phase and trial (participant, phase, mode, simulated time, collisions) to stdout, and while
 a trial runs on the screen a status line every few seconds (participant, phase, mode,
 trial time, collisions, frame rates). The participant's window never shows the mode.
@@ -14,15 +14,6 @@ trial time, collisions, frame rates). The participant's window never shows the m
   (:class:`study.ui.inject.EventDriver`), paced by the wall clock unless ``--fast``;
   ``--snapshots DIR`` saves PNG screenshots at every page and trial start and every few
   seconds of trial time.
-
-Decisions: the participant's generator is seeded with ``--seed`` if given, else with a
-seed derived from the protocol's study seed and the participant code, and the same number
-is stored as the participant's seed, so ``--resume`` continues with the same participant.
-A person cannot run ``--headless`` (nobody would see the screen), and ``--snapshots`` needs
-the screen. On the screen path the recordings get the camera image the participant saw
-(2 Hz, the session engine's default for a human; for scripted and synthetic participants
-driving through the screen too), taken from the screen's camera process, never rendered
-on the control path.
 """
 
 from __future__ import annotations
@@ -32,21 +23,14 @@ from pathlib import Path
 from typing import Any
 
 import click
-import numpy as np
 
-INPUTS = ("scripted", "human", "synthetic")
-
-
-def _decider(input_kind: str, seed: int) -> Any:
-    """The scripted or synthetic participant that decides."""
-    from study.participants import ScriptedParticipant
-
-    if input_kind == "synthetic":
-        from study.participants import synthetic_participant
-
-        # the same seed draws the same person, so --resume continues with them
-        return synthetic_participant(np.random.default_rng(seed))
-    return ScriptedParticipant(np.random.default_rng(seed))
+INPUTS = ("scripted", "human", "synthetic")  # study.engine.launch.INPUTS
+# the library's errors name run_session's parameters; the experimenter types flags
+_FLAGS = (
+    ("run with resume=False", "run without --resume"),
+    ("resume=True", "--resume"),
+    ("force=True", "--force"),
+)
 
 
 class _Terminal:
@@ -138,8 +122,7 @@ def run(
           --headless --snapshots shots/
       asa run --protocol pilot --participant P01 --db pilot.db --resume   # after a crash
     """
-    from study.engine.protocol import load_protocol
-    from study.engine.session import check_code, default_seed, run_session
+    from study.engine.launch import run_participant
 
     if input_kind == "human" and headless:
         raise ValueError("--headless: a person needs the window; drop --headless")
@@ -152,54 +135,27 @@ def run(
         raise ValueError(
             "--input human: SDL_VIDEODRIVER is 'dummy', so no window can open; unset it"
         )
-    check_code(code)
-    p = load_protocol(protocol)
-    seed = seed if seed is not None else default_seed(p.study.seed, code)
-    if not screen:
-        participant = _decider(input_kind, seed)
-        summary = run_session(
-            p,
-            code,
-            db,
-            participant=participant,
-            seed=seed,
-            resume=resume,
-            force=force,
-            progress=lambda line: click.echo(line),
-        )
-    else:
-        if headless:
-            os.environ["SDL_VIDEODRIVER"] = "dummy"
-            os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
-        from study.participants.human import HumanParticipant
-        from study.engine.trial import FreeClock
-        from study.ui.inject import EventDriver
-        from study.ui.input import GamepadMapping
-
-        driver = None
-        if input_kind != "human":
-            driver = EventDriver(_decider(input_kind, seed), GamepadMapping.from_settings(p.input))
-        terminal = _Terminal(code)
-        person = HumanParticipant(
-            p.ui, p.input, driver=driver, snapshots=snapshots, status=terminal.status
-        )
-        try:
-            summary = run_session(
-                p,
-                code,
-                db,
-                participant=person,
-                seed=seed,
-                resume=resume,
-                force=force,
-                progress=lambda line: click.echo(line),
-                clock=FreeClock() if fast else person.clock(),
-                camera_hz=2.0,  # the image on the screen (HumanParticipant.camera_image)
-                on_tick=terminal.on_tick,
-            )
-        finally:
-            person.close()
+    terminal = _Terminal(code)
+    try:
+        summary = run_participant(
+            protocol, code, db, input_kind=input_kind, seed=seed, resume=resume, force=force,
+            headless=headless, snapshots=snapshots, fast=fast,
+            progress=lambda line: click.echo(line), status=terminal.status,
+            on_tick=terminal.on_tick,
+        )  # fmt: skip
+    except ValueError as error:
+        text = _with_flags(str(error))
+        if text == str(error):
+            raise
+        raise ValueError(text) from error
     click.echo(
         f"{summary.participant}: session {summary.session_id} {summary.status}, "
         f"{len(summary.trials)} trials run"
     )
+
+
+def _with_flags(message: str) -> str:
+    """``message`` with run_session's parameter names as the flags that set them."""
+    for name, flag in _FLAGS:
+        message = message.replace(name, flag)
+    return message

@@ -1,13 +1,6 @@
-"""One trial outside a session, for benchmarks, tests and a quick look at one mode.
-
-:func:`standalone_trial` makes a fresh study database in a folder (a study, a participant
-and a session row, so the trial's rows have their parents), builds the scene and its
-:class:`sim.world.World`, runs :func:`study.engine.trial.run_trial` exactly as a session does, and
-closes the world. The recording goes to ``<folder>/rec/trial_<id>.rrd``.
-
-Decision: the participant row takes the participant's own ``kind`` and ``parameters``, and
-the mode's settings are the registry defaults unless ``mode_settings`` says otherwise.
-"""
+"""One trial outside a session, for benchmarks, tests and a quick look at one mode: a fresh
+study database with its parent rows, the scene, :func:`study.engine.trial.run_trial` as a
+session runs it; the recording goes to ``<folder>/rec/trial_<id>.rrd``."""
 
 from __future__ import annotations
 
@@ -18,20 +11,22 @@ from typing import Any
 from sqlalchemy.engine import Engine
 from sqlalchemy.orm import Session
 
-from autonomy.modes import make_mode
+from autonomy.modes import make_mode, with_defaults
 from sim.occupancy import build_grid
 from sim.scenario import load_scenario
 from sim.semantics import derive_components
 from sim.world import World
-from study.data.storage import Participant, SessionRow, Study, open_database
+from study.data.storage import Participant as ParticipantRow
+from study.data.storage import SessionRow, Study, open_database
 from study.engine.trial import Scene, TrialResult, TrialSpec, TrialWriter, run_trial
+from study.participants.base import Participant
 from tasks.primary import PrimarySettings
 from tasks.secondary import SecondarySettings
 
 
 def standalone_trial(
     folder: str | Path,
-    participant: Any,
+    participant: Participant,
     *,
     mode: str = "manual",
     scenario: str = "cluttered_room",
@@ -74,33 +69,9 @@ def standalone_trial(
     components = derive_components(sc)
     built = make_mode(mode, **dict(mode_settings or {}))
     if wrap_mode is not None:
-        built = wrap_mode(built)
+        built = with_defaults(wrap_mode(built))
     engine = open_database(folder / database)
-    with Session(engine) as s, s.begin():
-        study = Study(
-            name="standalone",
-            protocol_text="",
-            protocol_sha256="0" * 64,
-            platform_version="standalone",
-            seed=seed,
-        )
-        s.add(study)
-        s.flush()
-        person = Participant(
-            study_id=study.id,
-            code="T01",
-            kind=getattr(participant, "kind", "scripted"),
-            parameters=dict(getattr(participant, "parameters", {})),
-            order_index=0,
-            mode_order=[mode],
-            seed=seed,
-        )
-        s.add(person)
-        s.flush()
-        row = SessionRow(participant_id=person.id)
-        s.add(row)
-        s.flush()
-        person_id, session_id = person.id, row.id
+    person_id, session_id = _parent_rows(engine, participant, mode, seed)
     spec = TrialSpec(
         phase=phase,
         ordinal=0,
@@ -112,16 +83,7 @@ def standalone_trial(
         secondary=secondary,
         camera_hz=camera_hz,
     )
-    values = {
-        "participant_id": person_id,
-        "session_id": session_id,
-        "phase": phase,
-        "mode": mode,
-        "ordinal": 0,
-        "attempt": 0,
-        "scenario": sc.name,
-        "seed": seed,
-    }
+    values = _trial_values(person_id, session_id, spec, sc.name)
     with World(sc, seed=0, components=components) as world:
         result = run_trial(
             engine,
@@ -138,3 +100,48 @@ def standalone_trial(
             on_tick=on_tick,
         )
     return result, engine
+
+
+def _parent_rows(engine: Engine, participant: Participant, mode: str, seed: int) -> tuple[int, int]:
+    """A study, participant and session row for the trial's rows: their ids."""
+    with Session(engine) as s, s.begin():
+        study = Study(
+            name="standalone",
+            protocol_text="",
+            protocol_sha256="0" * 64,
+            platform_version="standalone",
+            seed=seed,
+        )
+        s.add(study)
+        s.flush()
+        person = ParticipantRow(
+            study_id=study.id,
+            code="T01",
+            kind=participant.kind,
+            parameters=dict(participant.parameters),
+            order_index=0,
+            mode_order=[mode],
+            seed=seed,
+        )
+        s.add(person)
+        s.flush()
+        row = SessionRow(participant_id=person.id)
+        s.add(row)
+        s.flush()
+        return person.id, row.id
+
+
+def _trial_values(
+    person_id: int, session_id: int, spec: TrialSpec, scenario: str
+) -> dict[str, Any]:
+    """Column values of the trial row."""
+    return {
+        "participant_id": person_id,
+        "session_id": session_id,
+        "phase": spec.phase,
+        "mode": spec.mode,
+        "ordinal": 0,
+        "attempt": 0,
+        "scenario": scenario,
+        "seed": spec.seed,
+    }

@@ -1,66 +1,9 @@
-"""One trial: the 20 Hz control loop of DESIGN.md ("One control tick") with its storage.
+"""One trial: the 20 Hz control loop of DESIGN.md ("One control tick") and its storage.
 
-Per tick, in this order::
-
-    obs = world.sense()                  # (the previous tick's, see below)
-    inp = participant.act(obs, screen)   # the screen never names the mode
-    out = mode.step(obs, inp.u)          # v, beta, label, target, diagnostics
-    world.apply(out.v); started = world.step()
-    primary.update(...); secondary.update(...) / answer(...)
-    recorder.tick(...); a Sample row buffered
-
-The observation is sensed once per tick, right after the step, and used by the next
-tick's participant and mode, which is the same sequence as sensing at the top of the loop.
-
-Storage (DESIGN.md, "Data"; :mod:`study.data.storage` holds the models): the trial row is
-written with status ``running`` before the first tick; samples, events and question rows
-are buffered and written in one transaction at least once per simulated second
-(``flush_every_ticks = 20``); the end of a trial (the last rows, the outcome, the status
-and ``ended_at``) is one transaction. A crash therefore loses at most the last second of
-a trial that a resumed session marks aborted and runs again. The per-second flushes are
-plain Core ``executemany`` inserts on a connection (the ORM session's bulk path cost
-about three times as much per flush, for the same rows).
-
-Decisions where the spec is silent:
-
-- Time. A :class:`FreeClock` runs as fast as the machine allows (scripted and synthetic
-  participants); a :class:`WallClock` sleeps to the next 20 Hz tick (humans) and measures
-  the period jitter, stored as its 99th percentile in ``trial.tick_jitter_ms``. The loop
-  code is the same for both.
-- Pause. The experimenter's :class:`ExperimenterControl` (or the participant's pause
-  button, which toggles it) freezes simulated time: no tick is simulated while paused,
-  the participant keeps being asked to ``act`` with ``screen.paused`` set, and ``pause``
-  and ``resume`` events are stored. A free-running clock paced by nobody would spin, so
-  a paused free-running trial waits 10 ms per poll.
-- Abort. ``control.abort()`` ends the trial at the next tick with status ``aborted``; the
-  outcome so far is stored in ``trial.outcome``. An exception inside the loop (or Ctrl-C)
-  stores the buffered rows and marks the trial ``aborted`` with the reason before it
-  propagates; everything that can fail on bad input (the tasks' settings) is built before
-  the trial row is written.
-- After the completing transaction the participant's optional ``end_trial(outcome)`` is
-  called (a synthetic participant rates the trial from it).
-- A mode whose labels stand for contextual task types (``label_tasks() -> {label: task
-  type}``, the contextual mode's motion primitives) has that table stored in
-  ``trial.outcome["label_tasks"]``, so the analysis scores recognition from the data alone.
-- Before ``begin_trial`` the participant's optional ``attach(world, event)`` is called with
-  the trial's World (read only: the screen renders the camera from ``true_pose()`` and
-  counts ``contacts()``) and ``event(t, kind, **detail)``, which buffers an event row of
-  this trial (the human interface stores ``input_lost`` / ``input_back`` with it).
-- Question rows are written when the question is answered or times out (or, still
-  unanswered, at the end of the trial); the ``question_shown`` event is written at once.
-- Baseline trials (no driving) run the same loop with no mode: the robot stays at A with
-  ``v = 0`` and the samples record that, so every trial has samples at 20 Hz.
-- Recordings: ``<db stem>_recordings/<code>/s<session>_<phase>_<ordinal>_a<attempt>.rrd``
-  beside the database by default (:func:`recording_relpath`; an existing file is never
-  overwritten), the path stored relative to the database's folder. Camera frames are logged
-  at ``camera_hz`` (the caller's choice: the session engine uses 2 Hz for human
-  participants and none for scripted and synthetic ones, whose sessions would otherwise
-  spend most of their time rendering). A participant that already shows a camera image
-  (the human screen renders it off the control path) offers it through an optional
-  ``camera_image() -> array | None``; the loop then logs that image instead of rendering
-  one itself, so the recording costs no control time.
-- Collision starts are events with the element and map position; collision ends too.
-- Region entry and exit are events whenever the secondary task is active in the trial.
+Thesis Sec. 7.6.1.3 (the trials of a session). Per tick, in this order: the participant
+acts on the last observation and the screen (never the mode), the mode steps, the world
+steps and is sensed, the tasks update, and the tick's sample, events and recording are
+written (:class:`TrialLoop`).
 """
 
 from __future__ import annotations
@@ -74,108 +17,39 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from sqlalchemy.engine import Connection, Engine
-from sqlalchemy.orm import Session
+from sqlalchemy.engine import Engine
 
-from autonomy.types import RobotModel
+from autonomy.types import Assist, RobotModel
 from sim.occupancy import OccupancyGrid
 from sim.scenario import Scenario, point_in_region
-from sim.types import SemanticComponent
+from sim.types import Contact, Pose2D, SemanticComponent
 from sim.world import World
 from study.data.recording import TrialRecorder
-from study.data.storage import Event, Question, Sample, Trial, utc_now
+from study.engine.clocks import DT, ExperimenterControl, FreeClock, WallClock
+from study.engine.events import EventSink, TrialWriter, jsonable
 from study.types import ParticipantInput, ScreenState, TickRecord, TrialInfo
 from tasks.geometry import footprint_clearance
 from tasks.primary import PrimarySettings, PrimaryTask
-from tasks.secondary import SecondaryEvent, SecondarySettings, SecondaryTask, summarise
+from tasks.secondary import SecondarySettings, SecondaryTask, summarise
 
-DT = 0.05  # [s] control tick (20 Hz)
+__all__ = [
+    "DT",
+    "FLUSH_EVERY_TICKS",
+    "ExperimenterControl",
+    "FreeClock",
+    "Scene",
+    "TrialLoop",
+    "TrialResult",
+    "TrialSpec",
+    "TrialWriter",
+    "WallClock",
+    "recording_relpath",
+    "run_trial",
+]
+
 FLUSH_EVERY_TICKS = 20  # one transaction per simulated second at least
 _ZERO3 = np.zeros(3)
 _ZERO3.setflags(write=False)
-# Core inserts of the buffered rows (plain executemany, column defaults applied)
-_INSERT_SAMPLE = Sample.__table__.insert()
-_INSERT_EVENT = Event.__table__.insert()
-_INSERT_QUESTION = Question.__table__.insert()
-
-
-# ------------------------------------------------------------------------- clocks
-
-
-class FreeClock:
-    """Free-running time: ticks follow each other as fast as the machine allows."""
-
-    paced = False
-
-    def start(self) -> None:
-        """Start timing a trial."""
-
-    def wait(self) -> None:
-        """Return at once (nothing to wait for)."""
-
-    def jitter_p99_ms(self) -> float | None:
-        """None: a free-running trial has no period to keep."""
-        return None
-
-
-class WallClock:
-    """Wall-clock pacing at ``1 / dt``: :meth:`wait` sleeps to the next tick.
-
-    Parameters
-    ----------
-    dt : float
-        [s] tick period.
-    """
-
-    paced = True
-
-    def __init__(self, dt: float = DT) -> None:
-        self.dt = dt
-        self._next = math.nan
-        self._last = math.nan
-        self._periods: list[float] = []
-
-    def start(self) -> None:
-        """Start timing a trial (forgets earlier periods)."""
-        now = time.perf_counter()
-        self._next, self._last, self._periods = now + self.dt, now, []
-
-    def wait(self) -> None:
-        """Sleep until the next tick is due; records the achieved period."""
-        now = time.perf_counter()
-        if self._next > now:
-            time.sleep(self._next - now)
-        else:  # late: do not try to catch up a backlog
-            self._next = now
-        self._next += self.dt
-        now = time.perf_counter()
-        self._periods.append(now - self._last)
-        self._last = now
-
-    def jitter_p99_ms(self) -> float | None:
-        """99th percentile of ``|period - dt|`` [ms] over the trial, None before any tick."""
-        if not self._periods:
-            return None
-        return float(np.percentile(np.abs(np.asarray(self._periods) - self.dt), 99) * 1e3)
-
-
-class ExperimenterControl:
-    """Pause and abort requested by the experimenter (from another thread or a callback)."""
-
-    def __init__(self) -> None:
-        self.paused = False
-        self.aborted = False
-        self.reason = ""
-
-    def pause(self) -> None:
-        self.paused = True
-
-    def resume(self) -> None:
-        self.paused = False
-
-    def abort(self, reason: str = "aborted by the experimenter") -> None:
-        self.aborted = True
-        self.reason = reason
 
 
 # ------------------------------------------------------------------------- values
@@ -234,19 +108,6 @@ class TrialResult:
     duration_s: float  # [s] simulated
 
 
-def _jsonable(value: Any) -> Any:
-    """NaN and infinities as None, tuples as lists, recursively (for JSON columns)."""
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if isinstance(value, dict):
-        return {str(k): _jsonable(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_jsonable(v) for v in value]
-    if isinstance(value, np.generic):
-        return _jsonable(value.item())
-    return value
-
-
 def _finite(value: float | None) -> float | None:
     return None if value is None or not math.isfinite(value) else float(value)
 
@@ -267,127 +128,329 @@ def recording_relpath(folder: Path, recordings: Path, code: str, values: dict[st
     return os.path.relpath(path, folder)
 
 
-# ------------------------------------------------------------------------- writer
+class TrialLoop:
+    """The state of one trial between its start and its stored end (see :func:`run_trial`).
 
-
-class TrialWriter:
-    """Buffers a trial's rows and writes them in few transactions.
-
-    ``commits`` lists ``(tick, kind)`` of every transaction ("start", "flush", "end"),
-    for tests and diagnostics.
+    Everything that can fail on bad input (the tasks' settings) is built before the trial
+    row is written with status ``running``; :meth:`run` then runs the ticks, and an
+    exception inside them (or Ctrl-C) stores what is buffered and marks the trial
+    ``aborted`` with the reason before it propagates.
     """
 
-    def __init__(self, engine: Engine, session_id: int) -> None:
-        self.engine = engine
-        self.session_id = session_id
-        self.trial_id = -1
-        self.recording_path = ""
-        self.samples: list[dict[str, Any]] = []
-        self.events: list[dict[str, Any]] = []
-        self.questions: list[dict[str, Any]] = []
-        self.commits: list[tuple[int, str]] = []
+    def __init__(
+        self,
+        engine: Engine,
+        spec: TrialSpec,
+        *,
+        scene: Scene,
+        participant: Any,
+        mode: Any | None,
+        trial_values: dict[str, Any],
+        recording_dir: Path,
+        recording_rel: Callable[[int], str],
+        session_id: int,
+        clock: FreeClock | WallClock | None = None,
+        control: ExperimenterControl | None = None,
+        on_tick: Callable[[int, TrialWriter], None] | None = None,
+        max_collisions: int | None = None,
+    ) -> None:
+        self.spec, self.scene, self.participant, self.mode = spec, scene, participant, mode
+        self.clock = clock if clock is not None else FreeClock()
+        self.control = control if control is not None else ExperimenterControl()
+        self.on_tick, self.max_collisions = on_tick, max_collisions
+        scenario, world = scene.scenario, scene.world
+        rng = np.random.default_rng(spec.seed)
+        self.obs = world.reset(seed=int(rng.integers(2**31)))
+        robot = RobotModel.from_spec(scenario.robot, dt=DT)
+        if mode is not None:
+            mode.reset(robot)
+        self.primary = (
+            PrimaryTask(scenario, settings=spec.primary) if spec.primary is not None else None
+        )
+        self.secondary = _secondary_task(spec, scenario, rng)
+        self.time_limit = spec.primary.timeout_s if spec.primary is not None else math.inf
+        self.writer = TrialWriter(engine, session_id)
+        self.trial_id = self.writer.start(trial_values, recording_rel)
+        self.rec_path = recording_dir / self.writer.recording_path
+        self.trial_key = f"{trial_values['phase']}/{self.trial_id}"
+        self.footprint = scenario.robot.footprint()
+        hz = spec.camera_hz
+        self.camera_every = max(1, round(1.0 / (DT * hz))) if hz > 0 else 0
+        self.sec_events: list[Any] = []  # SecondaryEvent, for the outcome's summary
+        self.open_contacts: set[int] = set()
+        self.was_in_region = False
+        self.was_paused = False
+        self.tick = 0
+        self.t = 0.0
+        self.status = "completed"
+        self.reason = ""
+        self.sink: EventSink | None = None
 
-    def start(self, values: dict[str, Any], recording: Callable[[int], str]) -> int:
-        """Insert the trial row (status running) and its start event; returns its id."""
-        with Session(self.engine) as s, s.begin():
-            row = Trial(**values, status="running", started_at=utc_now())
-            s.add(row)
-            s.flush()
-            row.recording_path = self.recording_path = recording(row.id)
-            s.add(
-                Event(
-                    session_id=self.session_id,
-                    trial_id=row.id,
-                    t=0.0,
-                    kind="trial_started",
-                    detail=_jsonable(
-                        {k: values[k] for k in ("phase", "ordinal", "attempt", "scenario")}
-                    ),
-                )
+    # -------------------------------------------------------------- run
+
+    def run(self) -> TrialResult:
+        """Every tick to the trial's end; the outcome stored in one transaction."""
+        recorder: TrialRecorder | None = None
+        try:
+            scene = self.scene
+            recorder = TrialRecorder(
+                self.rec_path,
+                trial_key=self.trial_key,
+                scenario=scene.scenario,
+                components=scene.components,
+                grid=scene.grid,
             )
-            self.trial_id = row.id
-        self.commits.append((0, "start"))
-        return self.trial_id
+            self.sink = EventSink(self.writer, recorder)
+            self._begin()
+            self._loop()
+        except BaseException as exc:
+            # keep what was buffered and leave no ``running`` row behind; a resumed
+            # session runs the trial again
+            self._abort(exc)
+            raise
+        finally:
+            if recorder is not None:
+                recorder.close()
+        return self._finish()
 
-    def event(self, t: float, kind: str, **detail: Any) -> None:
-        self.events.append(
-            {
-                "session_id": self.session_id,
-                "trial_id": self.trial_id,
-                "t": float(t),
-                "kind": kind,
-                "detail": _jsonable(detail),
-                "created_at": utc_now(),
-            }
+    def _begin(self) -> None:
+        """Attach the participant to the trial's world and tell them what the trial is."""
+        spec, participant = self.spec, self.participant
+        participant.attach(self.scene.world, self.writer.event)  # the screen's hook (study.ui)
+        participant.begin_trial(
+            TrialInfo(
+                phase=spec.phase,
+                scenario=self.scene.scenario,
+                route=spec.primary.route if spec.primary is not None else (),
+                inspection=bool(spec.primary and spec.primary.inspection_required),
+                secondary=self.secondary is not None,
+                time_limit_s=self.time_limit,
+                drive=not spec.baseline,
+                primary=spec.primary,
+            )
         )
 
-    def _write(self, s: Session | Connection) -> None:
-        if self.samples:
-            s.execute(_INSERT_SAMPLE, self.samples)
-        if self.events:
-            s.execute(_INSERT_EVENT, self.events)
-        if self.questions:
-            s.execute(_INSERT_QUESTION, self.questions)
+    def _loop(self) -> None:
+        """Ask the participant once per tick; pause, abort or simulate the tick."""
+        spec, participant, control, clock = self.spec, self.participant, self.control, self.clock
+        secondary, sink, on_tick = self.secondary, self.sink, self.on_tick
+        assert sink is not None  # made by run()
+        clock.start()
+        while True:
+            question = secondary.current.text if secondary and secondary.current else None
+            screen = ScreenState(
+                phase=spec.phase,
+                instruction=spec.instruction,
+                question=question,
+                feedback=spec.feedback,
+                paused=control.paused,
+                t=self.t,
+            )
+            inp: ParticipantInput = participant.act(self.obs, screen)
+            if inp.pause and control.paused:
+                control.resume()
+            elif inp.pause:
+                control.pause()
+            if control.aborted:
+                self.status = "aborted"
+                self.reason = control.reason or "aborted by the experimenter"
+                sink(self.t, "abort", self.reason, reason=self.reason)
+                return
+            if control.paused:
+                self._paused()
+                continue
+            if self.was_paused:
+                sink(self.t, "resume")
+                self.was_paused = False
+            if inp.answer is not None and secondary is not None:
+                ev = secondary.answer(self.t, inp.answer)
+                if ev is not None:
+                    self.sec_events.append(ev)
+                    sink.secondary(ev)
+            done = self._tick(inp)
+            if on_tick is not None:
+                on_tick(self.tick, self.writer)
+            if done:
+                return
+            clock.wait()
 
-    def _clear(self) -> None:
-        """Forget the buffered rows: only once their transaction has committed."""
-        self.samples, self.events, self.questions = [], [], []
+    def _paused(self) -> None:
+        """One poll while paused: no tick is simulated (simulated time is frozen)."""
+        if not self.was_paused:
+            assert self.sink is not None  # made by run()
+            self.sink(self.t, "pause")
+            self.writer.flush(self.tick)
+            self.was_paused = True
+        if self.clock.paced:
+            self.clock.wait()
+        else:  # a free-running clock paced by nobody would spin
+            time.sleep(0.01)
 
-    def flush(self, tick: int) -> None:
-        """Write what is buffered in one transaction (kept for a retry if it fails)."""
-        # a Core connection: the same rows and transaction as an ORM session, about a
-        # third of the cost per flush (no unit of work for plain executemany inserts)
-        with self.engine.begin() as conn:
-            self._write(conn)
-        self._clear()
-        self.commits.append((tick, "flush"))
+    # -------------------------------------------------------------- one tick
 
-    def abort(self, tick: int, t: float, reason: str) -> None:
-        """After an exception in the loop: store what is buffered and mark the trial
-        ``aborted`` with ``reason`` in one transaction (best effort: a database that
-        fails here leaves the trial ``running`` for a resumed session to abort)."""
-        self.event(t, "trial_ended", status="aborted", reason=reason)
-        with Session(self.engine) as s, s.begin():
-            self._write(s)
-            row = s.get(Trial, self.trial_id)
-            if row is not None:
-                row.status = "aborted"
-                row.outcome = {"ticks": tick, "duration_s": t, "aborted_reason": reason}
-                row.ended_at = utc_now()
-        self._clear()
-        self.commits.append((tick, "abort"))
+    def _tick(self, inp: ParticipantInput) -> bool:
+        """Simulate one tick and store it; True when the trial is done."""
+        spec, mode, world = self.spec, self.mode, self.scene.world
+        u = np.asarray(inp.u, dtype=float)
+        out: Assist | None
+        if spec.baseline or mode is None:
+            u = _ZERO3
+            out = None
+            v = _ZERO3
+        else:
+            out = mode.step(self.obs, u)
+            v = out.v
+        world.apply(v)
+        started = world.step()
+        t = self.t = world.t
+        self.tick += 1
+        tick = self.tick
+        pose, velocity = world.true_pose(), world.true_velocity()
+        obs = self.obs = world.sense()
+        clearance = footprint_clearance(obs.points, self.footprint)
+        in_region = bool(point_in_region(self.scene.scenario, pose.x, pose.y))
+        done = self._task_events(started, pose, velocity, clearance, in_region)
+        task, target = self.participant.intention()
+        record = TickRecord(
+            tick=tick - 1,
+            t=t,
+            pose=pose,
+            u=u,
+            v=np.asarray(v, dtype=float),
+            beta=float(out.beta) if out is not None else 0.0,
+            label=str(out.label) if out is not None else "",
+            target=str(out.target) if out is not None else "",
+            min_clearance_m=clearance,
+            in_region=in_region,
+            true_task=task,
+            true_target=target,
+        )
+        self.writer.samples.append(record.row(self.trial_id))
+        camera = None
+        if self.camera_every and tick % self.camera_every == 0:
+            participant = self.participant  # a screen's image, else rendered here
+            camera = (
+                participant.camera_image() if participant.shows_camera else world.camera_image()
+            )
+        assert self.sink is not None  # made by run()
+        self.sink.recorder.tick(t, pose, obs.points, u, record.v, assist=out, camera=camera)
+        if tick % FLUSH_EVERY_TICKS == 0:
+            self.writer.flush(tick)
+        return done
 
-    def finish(self, tick: int, values: dict[str, Any]) -> None:
-        """The last rows and the trial's outcome, status and end time: one transaction."""
-        with Session(self.engine) as s, s.begin():
-            self._write(s)
-            row = s.get(Trial, self.trial_id)
-            assert row is not None  # written by start()
-            for key, value in values.items():
-                setattr(row, key, value)
-            row.ended_at = utc_now()
-        self._clear()
-        self.commits.append((tick, "end"))
+    def _task_events(
+        self,
+        started: list[Contact],
+        pose: Pose2D,
+        velocity: Any,
+        clearance: float,
+        in_region: bool,
+    ) -> bool:
+        """Collisions, the tasks' updates and their events; True when the trial is done."""
+        spec, sink, t = self.spec, self.sink, self.t
+        assert sink is not None  # made by run()
+        for c in started:
+            self.open_contacts.add(c.index)
+            sink.collision(c, t)
+        if self.open_contacts:
+            self._contacts_ended()
+        done = False
+        primary, secondary = self.primary, self.secondary
+        if primary is not None:
+            for pe in primary.update(t, pose, velocity, clearance, started):
+                detail = {k: v_ for k, v_ in asdict(pe).items() if k not in ("kind", "t")}
+                sink(pe.t, pe.kind, **{k: v_ for k, v_ in detail.items() if v_ is not None})
+            done = primary.done
+        if secondary is not None and not spec.baseline and in_region != self.was_in_region:
+            sink(t, "region_entry" if in_region else "region_exit")
+        self.was_in_region = in_region
+        if secondary is not None:
+            for ev in secondary.update(t, in_region):
+                self.sec_events.append(ev)
+                sink.secondary(ev)
+                if spec.baseline and ev.kind == "block_finished":
+                    done = True
+        if spec.end_on_collision and started:
+            done = True
+        if t >= self.time_limit + 1.0:  # a safety net; PrimaryTask times out first
+            done = True
+        return done
+
+    def _contacts_ended(self) -> None:
+        """A ``collision_end`` event (database only) for every open contact that ended."""
+        contacts = self.scene.world.contacts()
+        for index in sorted(self.open_contacts):
+            if math.isfinite(contacts[index].t_end):
+                self.open_contacts.discard(index)
+                self.writer.event(
+                    contacts[index].t_end,
+                    "collision_end",
+                    index=index,
+                    element=contacts[index].obstacle,
+                )
+
+    # -------------------------------------------------------------- the end
+
+    def _abort(self, exc: BaseException) -> None:
+        """After an exception: store the buffered rows, the trial ``aborted`` (best effort)."""
+        reason = (
+            "interrupted"
+            if isinstance(exc, KeyboardInterrupt)
+            else f"error: {type(exc).__name__}: {exc}"
+        )
+        if self.sink is not None:
+            self.sink.close_questions()
+        try:
+            self.writer.abort(self.tick, self.t, reason)
+        except Exception:  # the database itself failed; resume aborts the trial
+            pass
+
+    def _finish(self) -> TrialResult:
+        """The outcome, status and last rows in one transaction; then ``end_trial``."""
+        assert self.sink is not None  # made by run()
+        self.sink.close_questions()  # shown, never resolved
+        tick, t, status = self.tick, self.t, self.status
+        outcome: dict[str, Any] = {"ticks": tick, "duration_s": t}
+        values: dict[str, Any] = {"status": status, "tick_jitter_ms": self.clock.jitter_p99_ms()}
+        if self.primary is not None:
+            po = self.primary.outcome()
+            outcome.update(jsonable(asdict(po)))
+            values.update(
+                completed_task=po.completed,
+                completion_time_s=po.completion_time_s,
+                collisions=po.collisions,
+                score=po.score,
+                path_length_m=po.path_length_m,
+                clearance_mean_m=_finite(po.clearance_mean_m),
+                clearance_min_m=_finite(po.clearance_min_m),
+            )
+            if self.max_collisions is not None:
+                outcome["passed"] = bool(po.completed and po.collisions <= self.max_collisions)
+        table = self.mode.label_tasks() if self.mode is not None else None
+        if table is not None:  # what the mode's labels mean, for scoring its recognition
+            outcome["label_tasks"] = dict(table)
+        if self.secondary is not None:
+            outcome["secondary"] = jsonable(summarise(self.sec_events))
+        if status == "aborted":
+            outcome["aborted_reason"] = self.reason
+        self.writer.event(t, "trial_ended", status=status)
+        values["outcome"] = outcome
+        self.writer.finish(tick, values)
+        self.participant.end_trial(outcome)
+        return TrialResult(self.trial_id, status, outcome, tick, t)
 
 
-# ------------------------------------------------------------------------- the loop
-
-
-def _question_row(trial_id: int, ev: SecondaryEvent) -> dict[str, Any]:
-    q = ev.question
-    assert q is not None  # question events carry their question
-    return {
-        "trial_id": trial_id,
-        "block": ev.block_index,
-        "index": ev.question_index,
-        "text": q.text,
-        "shown_is_correct": q.shown_is_correct,
-        "shown_t": float(ev.t),
-        "answered_t": None,
-        "response": None,
-        "correct": False,
-        "answer_time_s": None,
-    }
+def _secondary_task(
+    spec: TrialSpec, scenario: Scenario, rng: np.random.Generator
+) -> SecondaryTask | None:
+    """The questions: the baseline block, or in the scenario's question region, or none."""
+    if spec.secondary is None:
+        return None
+    if spec.baseline:
+        return SecondaryTask.baseline(rng, settings=spec.secondary)
+    if len(scenario.question_region):
+        return SecondaryTask(rng, settings=spec.secondary)
+    return None
 
 
 def run_trial(
@@ -445,276 +508,19 @@ def run_trial(
     TrialResult
     """
     clock = clock if clock is not None else FreeClock()
-    control = control if control is not None else ExperimenterControl()
-    scenario, world = scene.scenario, scene.world
-    rng = np.random.default_rng(spec.seed)
-    obs = world.reset(seed=int(rng.integers(2**31)))
-    robot = RobotModel.from_spec(scenario.robot, dt=DT)
-    if mode is not None:
-        mode.reset(robot)
-    primary = PrimaryTask(scenario, settings=spec.primary) if spec.primary is not None else None
-    secondary: SecondaryTask | None = None
-    if spec.secondary is not None:
-        if spec.baseline:
-            secondary = SecondaryTask.baseline(rng, settings=spec.secondary)
-        elif len(scenario.question_region):
-            secondary = SecondaryTask(rng, settings=spec.secondary)
-    time_limit = spec.primary.timeout_s if spec.primary is not None else math.inf
-    writer = TrialWriter(engine, session_id)
-    trial_id = writer.start(trial_values, recording_rel)
-    rec_path = recording_dir / writer.recording_path
-    footprint = scenario.robot.footprint()
-    camera_every = max(1, round(1.0 / (DT * spec.camera_hz))) if spec.camera_hz > 0 else 0
-    intention = getattr(participant, "intention", None)
-    shown_camera = getattr(participant, "camera_image", None)
-    sec_events: list[SecondaryEvent] = []
-    open_questions: dict[tuple[int, int], dict[str, Any]] = {}
-    open_contacts: set[int] = set()
-    was_in_region = False
-    was_paused = False
-    tick = 0
-    t = 0.0
-    status = "completed"
-    reason = ""
-
-    def on_secondary(ev: SecondaryEvent) -> None:
-        sec_events.append(ev)
-        key = (ev.block_index, ev.question_index if ev.question_index is not None else -1)
-        if ev.kind == "question_shown":
-            open_questions[key] = _question_row(trial_id, ev)
-            text = ev.question.text if ev.question is not None else ""
-            writer.event(
-                ev.t, "question_shown", block=ev.block_index, index=ev.question_index, text=text
-            )
-            recorder.question(ev.t, text)
-        elif ev.kind in ("answer_given", "question_timeout"):
-            row = open_questions.pop(key, None)
-            if ev.kind == "answer_given":
-                if row is not None:
-                    row.update(
-                        answered_t=float(ev.t),
-                        response=ev.response,
-                        correct=bool(ev.correct),
-                        answer_time_s=ev.answer_time_s,
-                    )
-                writer.event(
-                    ev.t,
-                    "answer_given",
-                    block=ev.block_index,
-                    index=ev.question_index,
-                    response=ev.response,
-                    correct=ev.correct,
-                    answer_time_s=ev.answer_time_s,
-                )
-                recorder.question(ev.t, f"answer: {'yes' if ev.response else 'no'}")
-            else:
-                writer.event(
-                    ev.t, "question_timeout", block=ev.block_index, index=ev.question_index
-                )
-                recorder.event(ev.t, "timeout", "question")
-            if row is not None:
-                writer.questions.append(row)
-        else:
-            writer.event(ev.t, ev.kind, block=ev.block_index)
-
-    recorder: TrialRecorder | None = None
-    try:
-        recorder = TrialRecorder(
-            rec_path,
-            trial_key=f"{trial_values['phase']}/{trial_id}",
-            scenario=scenario,
-            components=scene.components,
-            grid=scene.grid,
-        )
-        attach = getattr(participant, "attach", None)  # the screen's hook (study.ui)
-        if attach is not None:
-            attach(world, writer.event)
-        participant.begin_trial(
-            TrialInfo(
-                phase=spec.phase,
-                scenario=scenario,
-                route=spec.primary.route if spec.primary is not None else (),
-                inspection=bool(spec.primary and spec.primary.inspection_required),
-                secondary=secondary is not None,
-                time_limit_s=time_limit,
-                drive=not spec.baseline,
-                primary=spec.primary,
-            )
-        )
-        clock.start()
-        while True:
-            question = secondary.current.text if secondary and secondary.current else None
-            screen = ScreenState(
-                phase=spec.phase,
-                instruction=spec.instruction,
-                question=question,
-                feedback=spec.feedback,
-                paused=control.paused,
-                t=t,
-            )
-            inp: ParticipantInput = participant.act(obs, screen)
-            if inp.pause and control.paused:
-                control.resume()
-            elif inp.pause:
-                control.pause()
-            if control.aborted:
-                status, reason = "aborted", control.reason or "aborted by the experimenter"
-                writer.event(t, "abort", reason=reason)
-                recorder.event(t, "abort", reason)
-                break
-            if control.paused:
-                if not was_paused:
-                    writer.event(t, "pause")
-                    recorder.event(t, "pause")
-                    writer.flush(tick)
-                    was_paused = True
-                if clock.paced:
-                    clock.wait()
-                else:
-                    time.sleep(0.01)
-                continue
-            if was_paused:
-                writer.event(t, "resume")
-                recorder.event(t, "resume")
-                was_paused = False
-            if inp.answer is not None and secondary is not None:
-                ev = secondary.answer(t, inp.answer)
-                if ev is not None:
-                    on_secondary(ev)
-            u = np.asarray(inp.u, dtype=float)
-            if spec.baseline or mode is None:
-                u = _ZERO3
-                out = None
-                v = _ZERO3
-            else:
-                out = mode.step(obs, u)
-                v = out.v
-            world.apply(v)
-            started = world.step()
-            t = world.t
-            tick += 1
-            pose, velocity = world.true_pose(), world.true_velocity()
-            obs = world.sense()
-            clearance = footprint_clearance(obs.points, footprint)
-            in_region = bool(point_in_region(scenario, pose.x, pose.y))
-            for c in started:
-                open_contacts.add(c.index)
-                writer.event(
-                    c.t_start,
-                    "collision",
-                    element=c.obstacle,
-                    x=float(c.position[0]),
-                    y=float(c.position[1]),
-                    index=c.index,
-                )
-                recorder.event(t, "collision", c.obstacle)
-            if open_contacts:
-                contacts = world.contacts()
-                for index in sorted(open_contacts):
-                    if math.isfinite(contacts[index].t_end):
-                        open_contacts.discard(index)
-                        writer.event(
-                            contacts[index].t_end,
-                            "collision_end",
-                            index=index,
-                            element=contacts[index].obstacle,
-                        )
-            done = False
-            if primary is not None:
-                for pe in primary.update(t, pose, velocity, clearance, started):
-                    detail = {k: v_ for k, v_ in asdict(pe).items() if k not in ("kind", "t")}
-                    writer.event(
-                        pe.t, pe.kind, **{k: v_ for k, v_ in detail.items() if v_ is not None}
-                    )
-                    recorder.event(pe.t, pe.kind)
-                done = primary.done
-            if secondary is not None and not spec.baseline:
-                if in_region != was_in_region:
-                    kind = "region_entry" if in_region else "region_exit"
-                    writer.event(t, kind)
-                    recorder.event(t, kind)
-            was_in_region = in_region
-            if secondary is not None:
-                for ev in secondary.update(t, in_region):
-                    on_secondary(ev)
-                    if spec.baseline and ev.kind == "block_finished":
-                        done = True
-            if spec.end_on_collision and started:
-                done = True
-            if t >= time_limit + 1.0:  # a safety net; PrimaryTask times out first
-                done = True
-            task, target = intention() if intention is not None else ("", "")
-            record = TickRecord(
-                tick=tick - 1,
-                t=t,
-                pose=pose,
-                u=u,
-                v=np.asarray(v, dtype=float),
-                beta=float(out.beta) if out is not None else 0.0,
-                label=str(out.label) if out is not None else "",
-                target=str(out.target) if out is not None else "",
-                min_clearance_m=clearance,
-                in_region=in_region,
-                true_task=task,
-                true_target=target,
-            )
-            writer.samples.append(record.row(trial_id))
-            camera = None
-            if camera_every and tick % camera_every == 0:
-                camera = shown_camera() if shown_camera is not None else world.camera_image()
-            recorder.tick(t, pose, obs.points, u, record.v, assist=out, camera=camera)
-            if tick % FLUSH_EVERY_TICKS == 0:
-                writer.flush(tick)
-            if on_tick is not None:
-                on_tick(tick, writer)
-            if done:
-                break
-            clock.wait()
-    except BaseException as exc:
-        # Keep what was buffered and do not leave a ``running`` row behind; a resumed
-        # session runs the trial again.
-        reason = (
-            "interrupted"
-            if isinstance(exc, KeyboardInterrupt)
-            else f"error: {type(exc).__name__}: {exc}"
-        )
-        writer.questions.extend(open_questions.values())
-        try:
-            writer.abort(tick, t, reason)
-        except Exception:  # the database itself failed; resume aborts the trial
-            pass
-        raise
-    finally:
-        if recorder is not None:
-            recorder.close()
-    writer.questions.extend(open_questions.values())  # shown, never resolved
-    outcome: dict[str, Any] = {"ticks": tick, "duration_s": t}
-    values: dict[str, Any] = {"status": status, "tick_jitter_ms": clock.jitter_p99_ms()}
-    if primary is not None:
-        po = primary.outcome()
-        outcome.update(_jsonable(asdict(po)))
-        values.update(
-            completed_task=po.completed,
-            completion_time_s=po.completion_time_s,
-            collisions=po.collisions,
-            score=po.score,
-            path_length_m=po.path_length_m,
-            clearance_mean_m=_finite(po.clearance_mean_m),
-            clearance_min_m=_finite(po.clearance_min_m),
-        )
-        if max_collisions is not None:
-            outcome["passed"] = bool(po.completed and po.collisions <= max_collisions)
-    label_tasks = getattr(mode, "label_tasks", None)
-    if callable(label_tasks):  # what the mode's labels mean, for scoring its recognition
-        outcome["label_tasks"] = dict(label_tasks())
-    if secondary is not None:
-        outcome["secondary"] = _jsonable(summarise(sec_events))
-    if status == "aborted":
-        outcome["aborted_reason"] = reason
-    writer.event(t, "trial_ended", status=status)
-    values["outcome"] = outcome
-    writer.finish(tick, values)
-    end_trial = getattr(participant, "end_trial", None)
-    if end_trial is not None:
-        end_trial(outcome)
-    return TrialResult(trial_id, status, outcome, tick, t)
+    loop = TrialLoop(
+        engine,
+        spec,
+        scene=scene,
+        participant=participant,
+        mode=mode,
+        trial_values=trial_values,
+        recording_dir=recording_dir,
+        recording_rel=recording_rel,
+        session_id=session_id,
+        clock=clock,
+        control=control,
+        on_tick=on_tick,
+        max_collisions=max_collisions,
+    )
+    return loop.run()

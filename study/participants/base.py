@@ -1,24 +1,14 @@
-"""The participant interface: every participant, human, synthetic or scripted, is an object
-behind these few methods (issue 4, "A participant interface").
-
-The session engine calls :meth:`Participant.read` for texts (briefing, instructions,
-debrief), :meth:`Participant.fill` for a questionnaire, :meth:`Participant.choose` for the
-NASA-TLX pairwise comparisons, :meth:`Participant.begin_trial` before a trial, and
-:meth:`Participant.act` once per control tick. ``kind`` and ``parameters`` are stored with
-the participant row. A participant may also expose ``intention() -> (task, target)``
-(ground truth stored in every sample) and ``end_trial(outcome)`` (called with the trial's
-stored outcome dict once it is committed, before any questionnaire); both are optional and
-looked up with ``getattr``. So is ``learns`` (default True; False skips the training
-phase, see :mod:`study.engine.session`), and ``attach(world, event)``, called before ``begin_trial``
-with the trial's ``sim.world.World`` (to be read, never stepped: the human screen renders
-the camera from it) and ``event(t, kind, **detail)`` to store an event row of the trial
-(:mod:`study.participants.human` stores a lost and a returned input device with it).
+"""The participant interface: human, synthetic and scripted participants are objects behind
+these methods (issue 4, "A participant interface"); :class:`ParticipantBase` gives the
+optional hooks their defaults.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
 
 from sim.types import Observation
 from study.types import ParticipantInput, ScreenState, TrialInfo
@@ -26,13 +16,15 @@ from study.types import ParticipantInput, ScreenState, TrialInfo
 
 @runtime_checkable
 class Participant(Protocol):
-    """A participant of a session."""
+    """A participant of a session: every hook the session engine and the trial loop call."""
 
     kind: str  # "human", "synthetic" or "scripted" (storage.PARTICIPANT_KINDS)
     parameters: dict[str, Any]  # stored with the participant row
+    learns: bool  # False: the session skips the training phase (study.engine.session)
+    shows_camera: bool  # True: the recording logs camera_image() instead of rendering
 
     def read(self, text: str) -> None:
-        """Show ``text``; return when the participant has acknowledged it."""
+        """Show ``text`` (briefing, instructions, feedback, debrief); return when acknowledged."""
         ...
 
     def fill(self, instrument: Any, *, context: Mapping[str, Any]) -> dict[str, Any]:
@@ -46,6 +38,11 @@ class Participant(Protocol):
         """NASA-TLX pairwise comparisons: each pair (as presented) -> the chosen subscale."""
         ...
 
+    def attach(self, world: Any, event: Callable[..., None]) -> None:
+        """Before :meth:`begin_trial`: the trial's ``sim.world.World`` (read, never stepped)
+        and ``event(t, kind, **detail)``, which stores an event row of the trial."""
+        ...
+
     def begin_trial(self, info: TrialInfo) -> None:
         """A trial is about to start (the instructions, as a value)."""
         ...
@@ -53,3 +50,40 @@ class Participant(Protocol):
     def act(self, obs: Observation, screen: ScreenState) -> ParticipantInput:
         """One control tick: what the participant does given what they see."""
         ...
+
+    def intention(self) -> tuple[str, str]:
+        """Ground truth stored in every sample: (task type, component id), ``("", "")``
+        while driving freely or when unknown."""
+        ...
+
+    def camera_image(self) -> np.ndarray | None:
+        """The camera image shown now (read only when ``shows_camera``), None before any."""
+        ...
+
+    def end_trial(self, outcome: dict[str, Any]) -> None:
+        """The trial's stored outcome, once committed and before any questionnaire."""
+        ...
+
+
+class ParticipantBase:
+    """Defaults of the optional hooks of :class:`Participant`; participants inherit them
+    and implement ``read``, ``fill``, ``choose``, ``begin_trial`` and ``act``."""
+
+    kind: str = ""
+    parameters: dict[str, Any] = {}  # noqa: RUF012 (read only; instances set their own)
+    learns: bool = True
+    shows_camera: bool = False
+
+    def attach(self, world: Any, event: Callable[..., None]) -> None:
+        """Nothing to attach."""
+
+    def intention(self) -> tuple[str, str]:
+        """Unknown: ``("", "")``."""
+        return ("", "")
+
+    def camera_image(self) -> np.ndarray | None:
+        """No image shown."""
+        return None
+
+    def end_trial(self, outcome: dict[str, Any]) -> None:
+        """Nothing to remember."""

@@ -13,25 +13,7 @@ participant interface (:mod:`study.participants.base`) with the window of :mod:`
   command, a Yes/No press and the pause button. :meth:`HumanParticipant.clock` gives the
   :class:`study.ui.clock.UiClock` that draws more frames between ticks.
 
-Decisions where the spec is silent:
-
-- A gamepad removed while a trial runs pauses it (through ``ParticipantInput.pause``, the
-  trial's own pause path, which stores ``pause`` / ``resume`` events) and stores an
-  ``input_lost`` event with the device's name; the screen says what happened and that the
-  trial continues when the pad is back. The next pad plugged in stores ``input_back`` and
-  resumes the trial, unless the experimenter paused it too. The keyboard is always
-  available, so a keyboard-only session has nothing to lose.
-- Answers pressed between ticks (while :class:`UiClock` draws) are kept for the next tick;
-  the first Yes/No per tick counts. Answers while nothing is asked are ignored by the
-  secondary task.
-- Baseline trials (no driving) send a zero command whatever the sticks do.
-- Snapshots (``snapshots`` folder, headless runs): ``NNNN_<phase>_<what>.png`` at every page
-  and trial start, and every ``snapshot_every_s`` seconds of trial time.
-- The experimenter's terminal: ``status(line)`` every ``status_every_s`` of wall time during
-  a trial (phase, trial time, collisions, screen and camera frame rates); the CLI adds the
-  mode.
-- Closing the window raises ``KeyboardInterrupt``: the trial is stored as aborted
-  ("interrupted") and the session can be resumed.
+Its choices where the spec is silent are in docs/decisions.md.
 """
 
 from __future__ import annotations
@@ -48,6 +30,7 @@ from questionnaires import nasa_tlx
 from sim.occupancy import OccupancyGrid, build_grid
 from sim.types import Observation
 from study.engine.protocol import InputSettings, UiSettings
+from study.participants.base import ParticipantBase
 from study.types import ParticipantInput, ScreenState, TrialInfo
 from study.ui.camera import CameraFeed
 from study.ui.clock import UiClock
@@ -93,7 +76,7 @@ def _route_text(info: TrialInfo) -> str:
     return text.strip()
 
 
-class HumanParticipant:
+class HumanParticipant(ParticipantBase):
     """A participant at the pygame screen.
 
     Parameters
@@ -120,6 +103,7 @@ class HumanParticipant:
     """
 
     kind = "human"
+    shows_camera = True  # the recording logs the image on the screen (camera_image)
 
     def __init__(
         self,

@@ -1,35 +1,8 @@
-"""A scripted participant: a deterministic test driver for the session engine.
-
-Not a model of people (that is the synthetic participant's job): it uses the true map of
-the scene to plan, and it exists so that tests and ``asa run --input scripted`` can drive
-every phase of a protocol headless.
-
-Behaviour (issue 4, the session engine's brief):
-
-- **Route.** The route's goals (``"dock"`` = pose B, ``"start"`` = pose A) are joined by
-  shortest paths on the occupancy grid (:func:`sim.occupancy.shortest_path`) that keep a
-  clearance of half the robot's width plus a margin; a larger clearance is tried first
-  (so that turning on the spot is safe), a smaller one only where a passage needs it.
-- **Following.** Holonomic pure pursuit: the command points at a look-ahead point on the
-  path at ``speed`` [m/s], slowing down towards a goal; the heading follows the direction
-  of travel, and turns to B's heading over the last ``align_distance_m`` before the dock.
-- **Inspection.** When the trial asks for it, the plan goes first to a point on a circle
-  around the inspection object (``orbit_distance_m`` from its surface, inside
-  :class:`tasks.primary.PrimarySettings`'s distance band) from which an arc of
-  ``min_arc_deg + arc_margin_deg`` is free of obstacles, turns to face the object, and
-  drives sideways around it (facing it) for that arc, then goes on to B.
-- **Questions.** Each question on the screen is answered ``answer_delay_s`` after it first
-  appeared, correctly with probability ``accuracy`` (a draw from the participant's
-  generator per question); the arithmetic is read from the question text.
-- **Questionnaires.** Valid values drawn uniformly from each item's allowed values.
-- **Getting unstuck.** Pushing the stick for ``stuck_s`` while the robot neither moves
-  nor turns (an assistance or the safety layer holding it against an obstacle) makes it
-  back away, opposite to where it pushed, for ``backoff_s``, then follow the plan again.
-
-Deterministic for a given generator seed: every draw comes from the passed-in
-``numpy.random.Generator``; grids are cached per scenario, planned paths per process
-(a path depends only on the scene, its ends and the settings).
-"""
+"""A scripted participant: a deterministic test driver for the session engine, not a model
+of people (that is :mod:`study.participants.synthetic`). It plans on the true map of the
+scene so that tests and ``asa run --input scripted`` drive every phase of a protocol
+headless; its behaviour (route, following, inspection, questions, getting unstuck) is in
+docs/decisions.md. Every draw comes from the passed-in ``numpy.random.Generator``."""
 
 from __future__ import annotations
 
@@ -44,6 +17,7 @@ import numpy as np
 from sim.occupancy import OccupancyGrid, build_grid, clearance_map, inflate, shortest_path
 from sim.scenario import Cylinder, Scenario
 from sim.types import Observation, Pose2D, wrap_angle
+from study.participants.base import ParticipantBase
 from study.types import ParticipantInput, ScreenState, TrialInfo
 
 _QUESTION = re.compile(r"^\s*(\d+)\s*([+-])\s*(\d+)\s*=\s*(\d+)")
@@ -143,7 +117,7 @@ def answer_is_correct(text: str) -> bool:
     return (a + b if op == "+" else a - b) == shown
 
 
-class ScriptedParticipant:
+class ScriptedParticipant(ParticipantBase):
     """A deterministic test driver behind the participant interface.
 
     Parameters

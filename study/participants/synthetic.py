@@ -1,82 +1,13 @@
-"""Synthetic participants: a sampled population of simulated people who drive with a
-gamepad while doing mental arithmetic (issue 6; thesis Sec. 7.6, spec section 7).
-
-This is a *model*, not data. Every number below is a documented choice; where the thesis
-gives a figure it is cited, elsewhere the range is what an HRI researcher would call
-plausible for students and staff driving a simulated robot with a gamepad.
-
-The population (:class:`Population`, sampled with a passed-in generator)
------------------------------------------------------------------------
-- ``preferred_speed`` [m/s]: how fast a person likes to drive; log-normal about 0.3 m/s,
-  clipped to [0.2, 0.45] (thesis Sec. 7.2.3, 7.3, 7.4: "the average speed of the robot
-  ... was approximately 0.3 m/s").
-- ``steering_noise``: multiplier of the stick tremor of :class:`tasks.skills.HumanStick`
-  (1 = its default); lower for people familiar with gamepads (``gamepad`` item).
-- ``overshoot_rate_hz``: onsets of over-/undershoot episodes; grows with the noise.
-- ``reaction_delay_s`` [s]: stick reaction delay, uniform in [0.15, 0.35] (simple
-  visuo-motor reaction times), applied as whole 50 ms ticks.
-- ``caution`` in [0, 1]: the margin kept from obstacles (the skills' guard margin and
-  stopping distance) and how much a person slows down in narrow places.
-- ``question_disturbance`` in [0, 1]: how much an open question takes attention from
-  driving; ``distraction`` is how the hand behaves meanwhile: ``"hold"`` (the last
-  command is held and slowly eased off), ``"drift"`` (held, with a growing uncorrected
-  drift) or ``"release"`` (the stick is let go). The driving input while a question is
-  open is ``(1 - d) * attended + d * distracted`` with ``d`` = disturbance times a
-  per-question draw in [0.5, 1].
-- Arithmetic: ``answer_time_s`` (median, seated, no driving; log-normal in about
-  [1.4, 3.2] s for the verification of a two-digit sum), ``error_rate`` (no driving;
-  [0.02, 0.10]); while driving answers are ``dual_task_slowdown`` times slower ([1.1, 1.6])
-  and errors ``dual_task_error_factor`` times likelier ([1.0, 2.5]): the thesis found
-  answer times with driving significantly longer than the baseline (Sec. 7.6.2,
-  Fig. 7.51). Each answer time is log-normal about that median (sigma 0.25).
-- Questionnaire style: ``tlx_bias`` (points added to every rating, N(0, 8)),
-  ``tlx_gain`` (use of the range, [0.7, 1.3]), ``tlx_noise`` (sd of rating noise,
-  [3, 8] points) and ``tlx_importance`` (Dirichlet(2) over the six subscales: which
-  sources of workload the person considers important; drives the pairwise choices).
-- The experience questionnaire: ``age`` (18-45), ``handedness`` (about 10 % left),
-  ``driving``, ``games``, ``gamepad``, ``robots`` on the 1..5 scales; ``gamepad`` is
-  drawn from ``games`` and lowers the steering noise.
-
-Driving (decisions where the spec is silent)
---------------------------------------------
-- The route is planned as the scripted driver plans it (:mod:`study.participants.scripted`:
-  shortest paths on the occupancy grid through the trial's goals, A -> dock at B -> A,
-  and, when asked, an inspection orbit around the object moving sideways while facing it;
-  the participant is given the complete map, thesis Sec. 7.6.1.1). The ideal command of
-  its pure-pursuit follower, on the *estimated* pose of every tick's observation (closed
-  loop: what the assistance does to the robot feeds back into the next command), is
-  taken at the participant's preferred speed, slowed in narrow places by caution, and
-  kept off the laser points by the skills' guard (:func:`tasks.skills.guard_command`);
-  it then passes :class:`tasks.skills.HumanStick` (delay, tremor, over-/undershoot,
-  deadzone, quantisation).
-- Contextual tasks (the ground truth, :meth:`SyntheticParticipant.intention`): the
-  route is split by what the robot is doing where it is: docking within 1.5 m of B on
-  the way to B; inspection on the orbit and over the last 1.5 m of the way to it;
-  doorway or gap crossing within 1 m of a passage the planned path goes through; wall
-  following when a wall is within 0.9 m beside the robot and the direction of travel is
-  within 30 degrees of the wall; object bypass within 0.6 m of an object; otherwise free
-  driving, logged as ``("", "")``.
-- Stuck: when the robot has not moved 5 cm in 2 s although the person pushes the stick,
-  the person tries something else for 1-1.5 s (backs off and turns a random way, as
-  people wiggle out of a jam), then resumes.
-- Questions are read as they appear; the answer is pressed after the drawn answer time
-  (a time beyond the task's timeout lets the question time out).
-
-Training: the model does not learn (its skill is fixed by the sampled parameters), so
-``learns = False`` and the session engine skips the protocol's training phase, recording
-why (:mod:`study.engine.session`); everything from practice on is run as for a person.
-
-Questionnaires: :func:`tlx_ratings` turns what the trial was like (:class:`TrialLoad`,
-from the stored outcome and what the participant noticed while driving) into ratings;
-see its docstring. Pairwise choices prefer the subscale with the larger importance
-(probability ``w_a^2 / (w_a^2 + w_b^2)``).
-"""
+"""Synthetic participants: simulated people who drive with a gamepad while doing mental
+arithmetic (issue 6; thesis Sec. 7.6). The population they are drawn from and their
+NASA-TLX model are in :mod:`study.participants.population`; the driving model's choices
+are in docs/decisions.md."""
 
 from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import asdict, dataclass, replace
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -84,6 +15,15 @@ import numpy as np
 from questionnaires import nasa_tlx
 from sim.semantics import derive_components
 from sim.types import Observation, SemanticComponent, wrap_angle
+from study.participants.base import ParticipantBase
+from study.participants.population import (
+    DISTRACTIONS,
+    TLX_ORDER,
+    ParticipantParams,
+    Population,
+    TrialLoad,
+    tlx_ratings,
+)
 from study.participants.scripted import (
     ScriptedParticipant,
     ScriptedSettings,
@@ -96,199 +36,18 @@ from tasks.guard import guard_command
 from tasks.skills import SkillSettings
 from tasks.stick import HumanStick, HumanStickSettings
 
+__all__ = [
+    "DISTRACTIONS",
+    "TLX_ORDER",
+    "ParticipantParams",
+    "Population",
+    "SyntheticParticipant",
+    "TrialLoad",
+    "synthetic_participant",
+    "tlx_ratings",
+]
+
 DT = 0.05  # [s] the control tick the stick model assumes
-DISTRACTIONS: tuple[str, ...] = ("hold", "drift", "release")
-TLX_ORDER: tuple[str, ...] = nasa_tlx.SUBSCALE_IDS
-
-
-# ---------------------------------------------------------------------- parameters
-
-
-@dataclass(frozen=True, slots=True)
-class ParticipantParams:
-    """One synthetic person (see the module docstring for each field's model)."""
-
-    preferred_speed: float  # [m/s]
-    steering_noise: float  # multiplier of HumanStick's tremor sigma
-    overshoot_rate_hz: float  # [1/s]
-    reaction_delay_s: float  # [s]
-    caution: float  # [0, 1]
-    question_disturbance: float  # [0, 1]
-    distraction: str  # DISTRACTIONS
-    answer_time_s: float  # [s] median, no driving
-    error_rate: float  # probability of a wrong answer, no driving
-    dual_task_slowdown: float  # answer-time factor while driving (>= 1)
-    dual_task_error_factor: float  # error-rate factor while driving (>= 1)
-    tlx_bias: float  # [points]
-    tlx_gain: float  # use of the scale's range
-    tlx_noise: float  # [points] sd
-    tlx_importance: tuple[float, ...]  # (6,) in TLX_ORDER, sums to 1
-    age: int  # [years]
-    handedness: str  # "right", "left", "ambidextrous"
-    driving: int  # 1..5
-    games: int  # 1..5
-    gamepad: int  # 1..5
-    robots: int  # 1..5
-
-    def as_dict(self) -> dict[str, Any]:
-        """JSON-able parameters (stored with the participant row)."""
-        out = asdict(self)
-        out["tlx_importance"] = list(self.tlx_importance)
-        return out
-
-    @classmethod
-    def from_dict(cls, values: Mapping[str, Any]) -> ParticipantParams:
-        """The inverse of :meth:`as_dict` (other keys, e.g. a study's bookkeeping, are
-        ignored; a missing field is an error)."""
-        fields = {k: v for k, v in values.items() if k in cls.__dataclass_fields__}
-        fields["tlx_importance"] = tuple(float(w) for w in fields.get("tlx_importance", ()))
-        return cls(**fields)
-
-
-@dataclass(frozen=True, slots=True)
-class Population:
-    """Ranges of the population model (change with ``dataclasses.replace``)."""
-
-    speed_median: float = 0.3  # [m/s] thesis Sec. 7.2.3: about 0.3 m/s
-    speed_sigma: float = 0.15  # log-normal sigma
-    speed_range: tuple[float, float] = (0.2, 0.45)  # [m/s]
-    noise_range: tuple[float, float] = (0.6, 1.6)  # steering-noise multiplier
-    delay_range_s: tuple[float, float] = (0.15, 0.35)  # [s]
-    disturbance_range: tuple[float, float] = (0.2, 0.8)
-    distraction_p: tuple[float, float, float] = (0.4, 0.35, 0.25)  # hold, drift, release
-    answer_time_median_s: float = 2.1  # [s]
-    answer_time_sigma: float = 0.2  # log-normal sigma between people
-    error_range: tuple[float, float] = (0.02, 0.10)
-    slowdown_range: tuple[float, float] = (1.1, 1.6)
-    error_factor_range: tuple[float, float] = (1.0, 2.5)
-    age_range: tuple[int, int] = (18, 45)  # [years]
-
-    def sample(self, rng: np.random.Generator) -> ParticipantParams:
-        """One person.
-
-        Parameters
-        ----------
-        rng : numpy.random.Generator
-            The only source of randomness; the same state gives the same person.
-        """
-        u = rng.random(16)
-        games = 1 + int(u[0] * 5)
-        gamepad = int(np.clip(games + rng.integers(-1, 2), 1, 5))
-        skill = (gamepad - 1) / 4.0  # 0..1
-        lo, hi = self.noise_range
-        noise = hi - (hi - lo) * (0.6 * skill + 0.4 * u[1])
-        speed = float(
-            np.clip(
-                self.speed_median * math.exp(self.speed_sigma * rng.standard_normal()),
-                *self.speed_range,
-            )
-        )
-        d_lo, d_hi = self.disturbance_range
-        e_lo, e_hi = self.error_range
-        s_lo, s_hi = self.slowdown_range
-        f_lo, f_hi = self.error_factor_range
-        style = DISTRACTIONS[int(np.searchsorted(np.cumsum(self.distraction_p), u[2] * 0.99999))]
-        answer = self.answer_time_median_s * math.exp(
-            self.answer_time_sigma * rng.standard_normal()
-        )
-        importance = rng.dirichlet(np.full(len(TLX_ORDER), 2.0))
-        handed = "left" if u[3] < 0.1 else ("ambidextrous" if u[3] < 0.13 else "right")
-        a_lo, a_hi = self.age_range
-        return ParticipantParams(
-            preferred_speed=round(speed, 4),
-            steering_noise=round(float(noise), 4),
-            overshoot_rate_hz=round(0.1 + 0.2 * float(noise), 4),
-            reaction_delay_s=round(
-                float(self.delay_range_s[0] + u[4] * np.ptp(self.delay_range_s)), 4
-            ),
-            caution=round(float(u[5]), 4),
-            question_disturbance=round(float(d_lo + (d_hi - d_lo) * u[6]), 4),
-            distraction=style,
-            answer_time_s=round(float(np.clip(answer, 1.4, 3.2)), 4),
-            error_rate=round(float(e_lo + (e_hi - e_lo) * u[7]), 4),
-            dual_task_slowdown=round(float(s_lo + (s_hi - s_lo) * u[8]), 4),
-            dual_task_error_factor=round(float(f_lo + (f_hi - f_lo) * u[9]), 4),
-            tlx_bias=round(float(8.0 * rng.standard_normal()), 3),
-            tlx_gain=round(float(0.7 + 0.6 * u[10]), 4),
-            tlx_noise=round(float(3.0 + 5.0 * u[11]), 4),
-            tlx_importance=tuple(round(float(w), 5) for w in importance),
-            age=int(a_lo + int(u[12] * (a_hi - a_lo + 1))),
-            handedness=handed,
-            driving=1 + int(u[13] * 5),
-            games=games,
-            gamepad=gamepad,
-            robots=int(np.clip(1 + int(u[14] * 3) + (1 if u[15] < skill * 0.3 else 0), 1, 5)),
-        )
-
-    def sample_many(self, n: int, rng: np.random.Generator) -> list[ParticipantParams]:
-        """``n`` people from one generator, in order."""
-        return [self.sample(rng) for _ in range(int(n))]
-
-
-# ---------------------------------------------------------------------- NASA-TLX model
-
-
-@dataclass(frozen=True, slots=True)
-class TrialLoad:
-    """What a trial was like for the participant (inputs of :func:`tlx_ratings`)."""
-
-    time_ratio: float  # completion time / the time the person expected (>= 0)
-    collisions: int  # collision episodes
-    completed: bool  # the route was finished
-    corrections: float  # [0, 1] how much the robot did not do what the stick said
-    question_load: float  # [0, 1] questions per minute of the trial, scaled (20/min = 1)
-    answer_errors: float  # [0, 1] share of wrong or timed-out answers
-
-
-def _latent(load: TrialLoad) -> np.ndarray:
-    """Latent workload per subscale [points, about 0..100] in TLX_ORDER."""
-    late = float(np.clip(load.time_ratio - 1.0, 0.0, 2.0))
-    hits = float(min(load.collisions, 5))
-    fail = 0.0 if load.completed else 1.0
-    q, c, e = load.question_load, load.corrections, load.answer_errors
-    return np.array(
-        [
-            25.0 + 35.0 * q + 10.0 * c + 3.0 * hits + 10.0 * e,  # mental
-            15.0 + 20.0 * c + 8.0 * late + 2.0 * hits,  # physical
-            20.0 + 25.0 * late + 20.0 * q + 10.0 * fail,  # temporal
-            10.0 + 10.0 * hits + 15.0 * late + 25.0 * e + 35.0 * fail,  # performance (failure)
-            25.0 + 20.0 * q + 15.0 * c + 4.0 * hits + 10.0 * late,  # effort
-            10.0 + 9.0 * hits + 20.0 * c + 10.0 * late + 10.0 * e + 30.0 * fail,  # frustration
-        ]
-    )
-
-
-def tlx_ratings(load: TrialLoad, params: ParticipantParams, z: np.ndarray) -> dict[str, int]:
-    """The six NASA-TLX ratings of one trial (a model, not data).
-
-    ``rating = clip(round5(50 + gain * (latent - 50) + bias + noise * z), 0, 100)`` per
-    subscale, where ``latent`` rises with time pressure (``time_ratio`` above 1),
-    collisions, corrections, question load, answer errors and a failed route (each
-    subscale with the sources its definition names, e.g. collisions on performance and
-    frustration, questions on mental and temporal demand).
-
-    Parameters
-    ----------
-    load : TrialLoad
-        What the trial was like.
-    params : ParticipantParams
-        The person's answering style (``tlx_gain``, ``tlx_bias``, ``tlx_noise``).
-    z : numpy.ndarray
-        (6,) standard normal draws (the rating noise), in :data:`TLX_ORDER`.
-
-    Returns
-    -------
-    dict[str, int]
-        Subscale id -> rating in 0..100, a multiple of 5.
-    """
-    raw = (
-        50.0
-        + params.tlx_gain * (_latent(load) - 50.0)
-        + params.tlx_bias
-        + params.tlx_noise * np.asarray(z, dtype=float)
-    )
-    stepped = np.clip(np.round(raw / 5.0) * 5.0, 0.0, 100.0)
-    return {k: int(v) for k, v in zip(TLX_ORDER, stepped, strict=True)}
 
 
 # ---------------------------------------------------------------------- the participant
@@ -332,8 +91,8 @@ def _nearby(components: Sequence[SemanticComponent]) -> _Nearby | None:
     return near, np.vstack([c.points for c in near]), starts, tangents
 
 
-class SyntheticParticipant:
-    """A synthetic person behind the participant interface (see the module docstring).
+class SyntheticParticipant(ParticipantBase):
+    """A synthetic person behind the participant interface (its model: docs/decisions.md).
 
     Parameters
     ----------

@@ -2,7 +2,7 @@
 
 The trial loop (:mod:`study.engine.trial`) asks the participant to ``act`` once per 20 Hz tick and
 then calls ``clock.wait()``; a screen redrawn only in ``act`` would run at 20 fps. Issue 5
-asks for 30 fps or more. :class:`UiClock` is a :class:`study.engine.trial.WallClock` whose ``wait``
+asks for 30 fps or more. :class:`UiClock` is a :class:`study.engine.clocks.WallClock` whose ``wait``
 draws further frames (``frame()``: pump the input events, collect the camera image, redraw)
 in the idle time before the next tick is due, every ``1 / fps`` seconds, but only when the
 frame's measured cost (an exponential average of the last frames, times 2, plus 2 ms)
@@ -15,7 +15,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 
-from study.engine.trial import DT, WallClock
+from study.engine.clocks import DT, WallClock
 
 
 class UiClock(WallClock):

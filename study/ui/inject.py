@@ -29,6 +29,7 @@ import pygame
 
 from questionnaires.base import Instrument
 from sim.types import Observation
+from study.participants.base import Participant
 from study.types import ScreenState, TrialInfo
 from study.ui.forms import FormState
 from study.ui.input import GamepadMapping
@@ -90,11 +91,11 @@ class EventDriver:
         Not needed up front: taken from each trial's scenario.
     """
 
-    def __init__(self, inner: Any, mapping: GamepadMapping) -> None:
+    def __init__(self, inner: Participant, mapping: GamepadMapping) -> None:
         self.inner = inner
         self.mapping = mapping
-        self.kind: str = getattr(inner, "kind", "scripted")
-        self.parameters: dict[str, Any] = dict(getattr(inner, "parameters", {}))
+        self.kind: str = inner.kind
+        self.parameters: dict[str, Any] = dict(inner.parameters)
         self._limits = (1.0, 1.0)
         self._plugged = False
         self._answers: dict[tuple[str, str], str] = {}
@@ -153,10 +154,7 @@ class EventDriver:
             post_button(int(self.mapping.buttons["pause"]))
 
     def intention(self) -> tuple[str, str]:
-        intention = getattr(self.inner, "intention", None)
-        return intention() if intention is not None else ("", "")
+        return self.inner.intention()
 
     def end_trial(self, outcome: dict[str, Any]) -> None:
-        end_trial = getattr(self.inner, "end_trial", None)
-        if end_trial is not None:
-            end_trial(outcome)
+        self.inner.end_trial(outcome)

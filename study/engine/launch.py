@@ -1,0 +1,145 @@
+"""One participant's session as ``asa run`` starts it: a scripted or synthetic participant
+without a screen, or the pygame screen (:class:`study.participants.human.HumanParticipant`)
+driven by a person or, headless, by a scripted or synthetic participant's decisions
+(:class:`study.ui.inject.EventDriver`)."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from study.engine.protocol import Protocol, load_protocol
+from study.engine.session import SessionSummary, check_code, default_seed, run_session
+from study.engine.trial import TrialWriter
+from study.participants.base import Participant
+
+INPUTS = ("scripted", "human", "synthetic")
+
+
+def decider(input_kind: str, seed: int) -> Participant:
+    """The scripted or synthetic participant that decides, its generator seeded with
+    ``seed`` (the same seed draws the same synthetic person, so a resumed session
+    continues with them)."""
+    from study.participants import ScriptedParticipant, synthetic_participant
+
+    if input_kind == "synthetic":
+        return synthetic_participant(np.random.default_rng(seed))
+    return ScriptedParticipant(np.random.default_rng(seed))
+
+
+def run_participant(
+    protocol: str,
+    code: str,
+    db: Path,
+    *,
+    input_kind: str = "scripted",
+    seed: int | None = None,
+    resume: bool = False,
+    force: bool = False,
+    headless: bool = False,
+    snapshots: Path | None = None,
+    fast: bool = False,
+    progress: Callable[[str], None] | None = None,
+    status: Callable[[str], None] | None = None,
+    on_tick: Callable[[int, TrialWriter], None] | None = None,
+) -> SessionSummary:
+    """Run (or resume) participant ``code``'s session of ``protocol`` in ``db``.
+
+    Parameters
+    ----------
+    protocol : str
+        Shipped protocol name or TOML file.
+    code : str
+        Pseudonymous participant code.
+    db : Path
+        Study database.
+    input_kind : str
+        One of :data:`INPUTS`: who decides.
+    seed : int, optional
+        The participant's seed (and its generator's); default derived from the
+        protocol's study seed and ``code``.
+    resume, force : bool
+        As :func:`study.engine.session.run_session`.
+    headless : bool
+        A scripted or synthetic participant through the screen, SDL's dummy video driver.
+    snapshots : Path, optional
+        Folder for the screen's PNG snapshots.
+    fast : bool
+        Headless: free-running instead of the wall clock.
+    progress, status, on_tick : callable, optional
+        One line per phase and trial; the screen's status lines; after every tick (screen
+        only).
+
+    Returns
+    -------
+    SessionSummary
+    """
+    check_code(code)
+    p = load_protocol(protocol)
+    seed = seed if seed is not None else default_seed(p.study.seed, code)
+    if input_kind != "human" and not headless:
+        participant = decider(input_kind, seed)
+        return run_session(
+            p,
+            code,
+            db,
+            participant=participant,
+            seed=seed,
+            resume=resume,
+            force=force,
+            progress=progress,
+        )
+    return _on_screen(
+        p, code, db, input_kind, seed, resume=resume, force=force, headless=headless,
+        snapshots=snapshots, fast=fast, progress=progress, status=status, on_tick=on_tick,
+    )  # fmt: skip
+
+
+def _on_screen(
+    p: Protocol,
+    code: str,
+    db: Path,
+    input_kind: str,
+    seed: int,
+    *,
+    resume: bool,
+    force: bool,
+    headless: bool,
+    snapshots: Path | None,
+    fast: bool,
+    progress: Callable[[str], None] | None,
+    status: Callable[[str], None] | None,
+    on_tick: Callable[[int, TrialWriter], None] | None,
+) -> SessionSummary:
+    """The session on the participant's screen (the camera image it shows is recorded)."""
+    if headless:
+        os.environ["SDL_VIDEODRIVER"] = "dummy"
+        os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
+    from study.engine.trial import FreeClock
+    from study.participants.human import HumanParticipant
+    from study.ui.inject import EventDriver
+    from study.ui.input import GamepadMapping
+
+    driver = None
+    if input_kind != "human":
+        driver = EventDriver(decider(input_kind, seed), GamepadMapping.from_settings(p.input))
+    person = HumanParticipant(p.ui, p.input, driver=driver, snapshots=snapshots, status=status)
+    try:
+        return run_session(
+            p,
+            code,
+            db,
+            participant=person,
+            seed=seed,
+            resume=resume,
+            force=force,
+            progress=progress,
+            clock=FreeClock() if fast else person.clock(),
+            camera_hz=2.0,  # the image on the screen (HumanParticipant.camera_image)
+            on_tick=on_tick,
+        )
+    finally:
+        person.close()
