@@ -8,8 +8,8 @@ adds clearance to obstacles (Fig. 7.44b). :func:`load_study` reads the raw table
 
 from __future__ import annotations
 
-from analysis.data.load import TABLES, AnalysisConfig, StudyData, load_study, read_config
 from analysis.data.frames import ASSIST_THRESHOLD, BASELINE, Frames, secondary_metrics, tidy
+from analysis.data.load import TABLES, AnalysisConfig, StudyData, load_study, read_config
 
 __all__ = [
     "ASSIST_THRESHOLD",
