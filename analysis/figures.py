@@ -4,22 +4,6 @@ Thesis Figs. 7.50-7.52 (means and standard deviations per mode as bars, the seco
 metrics with the baseline), Fig. 7.44b (clearance distribution per mode), and what issue 7
 adds: the NASA-TLX subscale profile per mode, every trial's path per mode, each metric by
 position in the participant's order (a learning or fatigue effect shows there).
-
-Decisions where the spec is silent
-----------------------------------
-- Figures are built on ``matplotlib.figure.Figure`` with an Agg canvas, never through
-  ``pyplot``, so nothing global changes and figures are freed with their objects.
-- Bars are the mean with error bars of one SD (as the thesis's figures), with each
-  participant's value as a dot over the bar, so the spread behind an SD is visible.
-- Paths: the analysis has no simulator access (layering); it draws the paths on the
-  occupancy map the session engine saved beside the recordings (``<recordings>/maps/
-  <scenario>.yaml`` + ``.pgm``, ROS map_server format, read by :func:`read_map`), or on
-  a blank plane when there is none (an ``asa export`` folder, a study of several
-  scenarios): x, y of the samples with equal aspect, start (circle) and end (cross).
-  Long trials are thinned to at most 600 points each for the drawing only.
-- Clearance distribution: the share of ticks per 0.1 m bin from 0 to 2 m plus an overflow
-  bin (the primary task's histogram bins), from the samples' ``min_clearance_m``; a trial
-  without samples contributes its stored ``clearance_histogram`` when present.
 """
 
 from __future__ import annotations
@@ -50,7 +34,7 @@ def _colour(level: str, modes: tuple[str, ...]) -> str:
 
 
 def _figure(width: float, height: float, **margins: float) -> Figure:
-    # fixed margins: a layout engine (tight, constrained) doubled the drawing time
+    # fixed margins: a layout engine (tight, constrained) is slower (docs/results.md)
     fig = Figure(figsize=(width, height), dpi=100)
     FigureCanvasAgg(fig)
     fig.subplots_adjust(**{"left": 0.09, "right": 0.98, "bottom": 0.2, "top": 0.9, **margins})

@@ -8,16 +8,6 @@ metrics describe the modes themselves (spec section 7, issue 7).
 Each :class:`Metric` names a column of :attr:`analysis.data.Frames.trials`; its names match
 ``study.engine.protocol.METRICS`` where the protocol knows the metric (``score_s``, ``tlx_raw``...),
 so the protocol's ``[analysis] metrics`` pick from this table.
-
-Decisions where the spec is silent
-----------------------------------
-- Every metric of :data:`METRICS` with data is analysed; the protocol's planned metrics come
-  first in the report and are marked as planned, the others are exploratory.
-- For a metric with ``baseline`` (the secondary-task ones) and the protocol's
-  ``secondary_baseline_level``, the baseline block is a further level after the modes; its
-  value per participant is computed from the baseline's questions as for a trial.
-- Levels where no participant has a value (e.g. recognition accuracy of manual control) are
-  left out of that metric's analysis, and the report says so.
 """
 
 from __future__ import annotations

@@ -4,25 +4,8 @@ Thesis Sec. 7.6.2: per metric a one-way repeated-measures ANOVA with the mode as
 (the baseline a fourth level of the secondary-task metrics) and Fisher's LSD where the null
 is rejected at the protocol's alpha; Figs. 7.44b and 7.50-7.52. :func:`build_report` reads a
 study (:mod:`analysis.data`), analyses every metric of :mod:`analysis.metrics` with
-:func:`analysis.stats.analyse` under the protocol's alpha and gate, draws the figures
-(:mod:`analysis.figures`) and renders ``templates/report.html.j2``.
-
-Decisions where the spec is silent
-----------------------------------
-- **One self-contained HTML file**: figures are inlined as SVG (text, scalable, searchable);
-  the PNG and SVG files are written beside it in ``figures/`` for papers.
-- **Which metrics**: all of the metric table with data, the protocol's planned metrics
-  (``[analysis] metrics``) first and marked "planned"; a metric that cannot be analysed
-  (no data, fewer than two complete participants or levels) is listed with the reason and
-  left out of ``results.json``.
-- **Post-hoc lead**: the protocol's ``posthoc`` form is the first table; the other LSD form
-  follows, collapsed. Both are in ``results.json`` and ``tables/``.
-- **Warnings** of every analysis (listwise deletion naming who was dropped, zero variance,
-  singular covariance) are printed under that metric and gathered at the top of the
-  report; data-quality notes list the main trials not counted (aborted, superseded),
-  participants without a complete set of modes and trials that timed out.
-- **results.json** is exactly {metric name -> the object of ``asa stats --json``} (the
-  return value of ``analyse``), nothing else, so a reader can feed it to the same tools.
+:func:`analysis.stats.analyse`, draws the figures (:mod:`analysis.figures`) and renders
+``templates/report.html.j2``.
 """
 
 from __future__ import annotations
@@ -39,8 +22,8 @@ import pandas as pd
 from markupsafe import Markup
 
 from analysis import figures as fig
-from analysis.data import BASELINE, Frames, StudyData, load_study, tidy
-from analysis.metrics import BY_NAME, long_frame, ordered_metrics
+from analysis.data import BASELINE, AnalysisConfig, Frames, StudyData, load_study, tidy
+from analysis.metrics import BY_NAME, Metric, long_frame, ordered_metrics
 from analysis.stats import analyse
 from analysis.tables import apa_anova, format_p
 from questionnaires import experience as experience_q
@@ -145,9 +128,39 @@ def _descriptive_rows(result: dict) -> list[dict]:
     ]
 
 
-def _write_csv(frame: pd.DataFrame, path: Path, written: list[Path]) -> None:
-    frame.to_csv(path, index=False)
-    written.append(path)
+@dataclass(frozen=True, slots=True)
+class _Written:
+    """The files written so far, in order (lists filled as the report is built)."""
+
+    figures: list[Path]
+    tables: list[Path]
+
+    def csv(self, frame: pd.DataFrame, path: Path) -> None:
+        frame.to_csv(path, index=False)
+        self.tables.append(path)
+
+    def figure(self, figure, folder: Path, stem: str) -> tuple[Path, Path, str]:
+        png, svg, svg_text = fig.save(figure, folder, stem)
+        self.figures.extend([png, svg])
+        return png, svg, svg_text
+
+
+def _analyse_metric(long: pd.DataFrame, cfg: AnalysisConfig) -> tuple[dict | None, str]:
+    """(the analyse() object, "") or (None, why the metric cannot be analysed)."""
+    if long.empty or long["value"].notna().sum() == 0:
+        return None, "no data"
+    try:
+        result = analyse(
+            long,
+            dv="value",
+            within="mode",
+            subject="participant",
+            alpha=cfg.alpha,
+            gate=cfg.gate,
+        )
+    except ValueError as error:
+        return None, str(error)
+    return result, ""
 
 
 def _sections(
@@ -155,80 +168,83 @@ def _sections(
     frames: Frames,
     out: Path,
     progress: Callable[[str], None],
-    written_figs: list[Path],
-    written_tables: list[Path],
+    written: _Written,
     only: tuple[str, ...] | None,
 ) -> tuple[list[dict], list[dict], dict]:
+    """Per metric the template's section, the metrics skipped (and why), the results."""
     cfg = data.config
     sections, skipped, results = [], [], {}
-    tables = out / "tables"
-    figures = out / "figures"
     for metric in ordered_metrics(cfg.metrics):
         if only is not None and metric.name not in only:
             continue
         long = long_frame(frames, metric, baseline=cfg.secondary_baseline_level)
         planned = metric.name in cfg.metrics
-        if long.empty or long["value"].notna().sum() == 0:
-            skipped.append({"name": metric.name, "planned": planned, "reason": "no data"})
-            continue
-        try:
-            result = analyse(
-                long,
-                dv="value",
-                within="mode",
-                subject="participant",
-                alpha=cfg.alpha,
-                gate=cfg.gate,
-            )
-        except ValueError as error:
-            skipped.append({"name": metric.name, "planned": planned, "reason": str(error)})
+        result, reason = _analyse_metric(long, cfg)
+        if result is None:
+            skipped.append({"name": metric.name, "planned": planned, "reason": reason})
             continue
         progress(f"metric {metric.name}: {apa_anova(result)}")
         results[metric.name] = result
-        notes = list(result["warnings"])
-        expected = list(frames.modes) + (
-            [BASELINE] if metric.baseline and cfg.secondary_baseline_level else []
-        )
-        left_out = [lv for lv in expected if lv not in result["levels"]]
-        if left_out:
-            notes.append(f"levels without any value left out: {', '.join(left_out)}")
-        figure = fig.metric_figure(long, metric, frames.modes)
-        png, svg, svg_text = fig.save(figure, figures, f"metric_{metric.name}")
-        written_figs += [png, svg]
-        desc = pd.DataFrame([{"level": k, **v} for k, v in result["descriptives"].items()])
-        _write_csv(desc, tables / f"{metric.name}_descriptives.csv", written_tables)
-        if result["posthoc"]["ran"]:
-            ph = pd.concat(
-                [
-                    pd.DataFrame(result["posthoc"][form]).assign(form=form)
-                    for form in ("lsd_paired", "lsd_pooled")
-                ],
-                ignore_index=True,
-            )
-            _write_csv(ph, tables / f"{metric.name}_posthoc.csv", written_tables)
-        other = "lsd_pooled" if cfg.posthoc == "lsd_paired" else "lsd_paired"
-        sections.append(
-            {
-                "metric": metric,
-                "planned": planned,
-                "result": result,
-                "apa": apa_anova(result),
-                "svg": Markup(svg_text),
-                "png_name": png.name,
-                "svg_name": svg.name,
-                "descriptives": _descriptive_rows(result),
-                "lead": cfg.posthoc,
-                "lead_pairs": _pair_rows(result["posthoc"][cfg.posthoc]),
-                "other": other,
-                "other_pairs": _pair_rows(result["posthoc"][other]),
-                "notes": notes,
-                "sphericity": result["sphericity"],
-                "gg": result["greenhouse_geisser"],
-                "p_gate": format_p(result["p_gate"]),
-                "anova": result["anova"],
-            }
-        )
+        sections.append(_section(metric, planned, long, result, frames, cfg, out, written))
     return sections, skipped, results
+
+
+def _section(
+    metric: Metric,
+    planned: bool,
+    long: pd.DataFrame,
+    result: dict,
+    frames: Frames,
+    cfg: AnalysisConfig,
+    out: Path,
+    written: _Written,
+) -> dict:
+    """One metric's section: its figure and CSV tables written, the template's values."""
+    notes = list(result["warnings"])
+    expected = list(frames.modes) + (
+        [BASELINE] if metric.baseline and cfg.secondary_baseline_level else []
+    )
+    left_out = [lv for lv in expected if lv not in result["levels"]]
+    if left_out:
+        notes.append(f"levels without any value left out: {', '.join(left_out)}")
+    figure = fig.metric_figure(long, metric, frames.modes)
+    png, svg, svg_text = written.figure(figure, out / "figures", f"metric_{metric.name}")
+    _write_metric_tables(metric.name, result, out / "tables", written)
+    other = "lsd_pooled" if cfg.posthoc == "lsd_paired" else "lsd_paired"
+    return {
+        "metric": metric,
+        "planned": planned,
+        "result": result,
+        "apa": apa_anova(result),
+        "svg": Markup(svg_text),
+        "png_name": png.name,
+        "svg_name": svg.name,
+        "descriptives": _descriptive_rows(result),
+        "lead": cfg.posthoc,
+        "lead_pairs": _pair_rows(result["posthoc"][cfg.posthoc]),
+        "other": other,
+        "other_pairs": _pair_rows(result["posthoc"][other]),
+        "notes": notes,
+        "sphericity": result["sphericity"],
+        "gg": result["greenhouse_geisser"],
+        "p_gate": format_p(result["p_gate"]),
+        "anova": result["anova"],
+    }
+
+
+def _write_metric_tables(name: str, result: dict, tables: Path, written: _Written) -> None:
+    """``<metric>_descriptives.csv`` and, when the post-hoc tests ran, ``<metric>_posthoc.csv``."""
+    desc = pd.DataFrame([{"level": k, **v} for k, v in result["descriptives"].items()])
+    written.csv(desc, tables / f"{name}_descriptives.csv")
+    if result["posthoc"]["ran"]:
+        ph = pd.concat(
+            [
+                pd.DataFrame(result["posthoc"][form]).assign(form=form)
+                for form in ("lsd_paired", "lsd_pooled")
+            ],
+            ignore_index=True,
+        )
+        written.csv(ph, tables / f"{name}_posthoc.csv")
 
 
 def _summary_table(results: dict[str, dict], planned: tuple[str, ...]) -> pd.DataFrame:
@@ -314,36 +330,69 @@ def build_report(
     """
     start = time.perf_counter()
     say = progress or (lambda _line: None)
-    if metrics is not None:
-        unknown = [m for m in metrics if m not in BY_NAME]
-        if unknown:
-            raise ValueError(f"metric {unknown[0]!r} is not known; allowed: {', '.join(BY_NAME)}")
-        metrics = tuple(metrics)
+    metrics = _checked_metrics(metrics)
     out = Path(out)
     if out.exists() and not out.is_dir():
-        raise ValueError(f"{out}: --out must be a folder, and this is a file")
+        raise ValueError(f"{out}: out must be a folder, and this is a file")
     say(f"reading {db}")
     data = load_study(db)
     frames = tidy(data)
-    cfg = data.config
     say(
         f"{len(frames.trials)} main trials of {frames.trials['participant'].nunique()} "
         f"participants, modes {', '.join(frames.modes)}"
     )
     (out / "tables").mkdir(parents=True, exist_ok=True)
     (out / "figures").mkdir(parents=True, exist_ok=True)
-    written_figs: list[Path] = []
-    written_tables: list[Path] = []
-    tables = out / "tables"
-    _write_csv(frames.trials, tables / "trials.csv", written_tables)
-    _write_csv(frames.questions, tables / "questions.csv", written_tables)
-    _write_csv(frames.responses, tables / "responses.csv", written_tables)
-    _write_csv(frames.participants, tables / "participants.csv", written_tables)
-    _write_csv(frames.aborted, tables / "aborted.csv", written_tables)
+    written = _Written(figures=[], tables=[])
+    positions, orders = _write_frames(frames, out / "tables", written)
+    sections, skipped, results = _sections(data, frames, out, say, written, metrics)
+    if not results:
+        raise ValueError(
+            f"{data.source}: no metric could be analysed "
+            f"({'; '.join(s['name'] + ': ' + s['reason'] for s in skipped)})"
+        )
+    written.csv(_summary_table(results, data.config.metrics), out / "tables" / "summary.csv")
+    say("figures: TLX profile, clearance, paths")
+    extra = _extra_figures(data, frames, out, written)
+    results_json = out / "results.json"
+    results_json.write_text(json.dumps(results, indent=1, allow_nan=False), encoding="utf-8")
+    html = _render_html(data, frames, positions, orders, sections, skipped, extra)
+    html_path = out / "report.html"
+    html_path.write_text(html, encoding="utf-8")
+    say(f"wrote {html_path}")
+    return ReportPaths(
+        html=html_path,
+        results_json=results_json,
+        figures=tuple(written.figures),
+        tables=tuple(written.tables),
+        metrics=tuple(results),
+        seconds=time.perf_counter() - start,
+    )
+
+
+def _checked_metrics(metrics: tuple[str, ...] | None) -> tuple[str, ...] | None:
+    if metrics is None:
+        return None
+    unknown = [m for m in metrics if m not in BY_NAME]
+    if unknown:
+        raise ValueError(f"metric {unknown[0]!r} is not known; allowed: {', '.join(BY_NAME)}")
+    return tuple(metrics)
+
+
+def _write_frames(
+    frames: Frames, tables: Path, written: _Written
+) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """The tidy frames and the counterbalancing table as CSV; (positions, orders) for the
+    template."""
+    written.csv(frames.trials, tables / "trials.csv")
+    written.csv(frames.questions, tables / "questions.csv")
+    written.csv(frames.responses, tables / "responses.csv")
+    written.csv(frames.participants, tables / "participants.csv")
+    written.csv(frames.aborted, tables / "aborted.csv")
     positions = pd.crosstab(frames.trials["mode"], frames.trials["position"] + 1)
     positions = positions.reindex(list(frames.modes))
     positions.columns = [f"position {c}" for c in positions.columns]
-    _write_csv(positions.reset_index(), tables / "counterbalancing.csv", written_tables)
+    written.csv(positions.reset_index(), tables / "counterbalancing.csv")
     orders = (
         frames.participants[frames.participants["main_trials"] > 0]
         .groupby(["order_index", "order"])
@@ -351,74 +400,54 @@ def build_report(
         .rename("participants")
         .reset_index()
     )
+    return positions, orders
 
-    sections, skipped, results = _sections(
-        data, frames, out, say, written_figs, written_tables, metrics
-    )
-    if not results:
-        raise ValueError(
-            f"{data.source}: no metric could be analysed "
-            f"({'; '.join(s['name'] + ': ' + s['reason'] for s in skipped)})"
-        )
-    _write_csv(_summary_table(results, cfg.metrics), tables / "summary.csv", written_tables)
 
-    extra = []
-    say("figures: TLX profile, clearance, paths")
-    counted_ids = set(frames.trials["trial_id"])
+def _extra_figures(data: StudyData, frames: Frames, out: Path, written: _Written) -> list[dict]:
+    """The TLX profile, the clearance distribution (and its CSV) and the paths, where there
+    are data; the template's entries."""
+    figures = out / "figures"
     samples = data.tables["sample"]
-    samples = samples[samples["trial_id"].isin(counted_ids)]
+    samples = samples[samples["trial_id"].isin(set(frames.trials["trial_id"]))]
+    extra = []
     if frames.trials["tlx_raw"].notna().any():
-        png, svg, text = fig.save(
-            fig.tlx_profile_figure(frames.trials, frames.modes), out / "figures", "tlx_profile"
-        )
-        written_figs += [png, svg]
-        extra.append(
-            {
-                "title": "NASA-TLX subscale profile per mode",
-                "svg": Markup(text),
-                "png_name": png.name,
-                "svg_name": svg.name,
-            }
-        )
+        figure = fig.tlx_profile_figure(frames.trials, frames.modes)
+        title = "NASA-TLX subscale profile per mode"
+        extra.append(_extra(written, figure, figures, "tlx_profile", title))
     outcomes = dict(
         zip(data.tables["trial"]["id"].astype(int), data.tables["trial"]["outcome"], strict=True)
     )
     counts = fig.clearance_counts(samples, frames.trials, outcomes)
     if counts.to_numpy().sum() > 0:
-        _write_csv(counts.reset_index(), tables / "clearance_distribution.csv", written_tables)
-        png, svg, text = fig.save(
-            fig.clearance_figure(counts, frames.modes), out / "figures", "clearance_distribution"
-        )
-        written_figs += [png, svg]
-        extra.append(
-            {
-                "title": "Clearance distribution per mode (thesis Fig. 7.44b)",
-                "svg": Markup(text),
-                "png_name": png.name,
-                "svg_name": svg.name,
-            }
-        )
+        written.csv(counts.reset_index(), out / "tables" / "clearance_distribution.csv")
+        figure = fig.clearance_figure(counts, frames.modes)
+        title = "Clearance distribution per mode (thesis Fig. 7.44b)"
+        extra.append(_extra(written, figure, figures, "clearance_distribution", title))
     if len(samples):
         background = _scene_map(data, frames)
-        png, svg, text = fig.save(
-            fig.paths_figure(samples, frames.trials, frames.modes, background),
-            out / "figures",
-            "paths",
+        figure = fig.paths_figure(samples, frames.trials, frames.modes, background)
+        title = "Every trial's path per mode (start o, end x)" + (
+            "" if background is not None else "; no saved map to draw them on"
         )
-        written_figs += [png, svg]
-        extra.append(
-            {
-                "title": "Every trial's path per mode (start o, end x)"
-                + ("" if background is not None else "; no saved map to draw them on"),
-                "svg": Markup(text),
-                "png_name": png.name,
-                "svg_name": svg.name,
-            }
-        )
+        extra.append(_extra(written, figure, figures, "paths", title))
+    return extra
 
-    results_json = out / "results.json"
-    results_json.write_text(json.dumps(results, indent=1, allow_nan=False), encoding="utf-8")
 
+def _extra(written: _Written, figure, folder: Path, stem: str, title: str) -> dict:
+    png, svg, text = written.figure(figure, folder, stem)
+    return {"title": title, "svg": Markup(text), "png_name": png.name, "svg_name": svg.name}
+
+
+def _render_html(
+    data: StudyData,
+    frames: Frames,
+    positions: pd.DataFrame,
+    orders: pd.DataFrame,
+    sections: list[dict],
+    skipped: list[dict],
+    extra: list[dict],
+) -> str:
+    """``templates/report.html.j2`` rendered with the study's values."""
     counted = set(frames.trials["participant"])
     kinds = frames.participants[frames.participants["participant"].isin(counted)]["kind"]
     all_warnings = list(frames.warnings)
@@ -433,10 +462,10 @@ def build_report(
         autoescape=jinja2.select_autoescape(["html", "j2"]),
         undefined=jinja2.StrictUndefined,
     )
-    html = env.get_template("report.html.j2").render(
+    return env.get_template("report.html.j2").render(
         study=data.study,
         source=data.source,
-        config=cfg,
+        config=data.config,
         n=len(counted),
         n_complete=int(frames.participants["complete"].sum()),
         kinds=kinds.value_counts().to_dict(),
@@ -453,17 +482,6 @@ def build_report(
         timeouts=timeouts[["participant", "mode", "position"]].to_dict("records"),
         n_trials=len(frames.trials),
         generated=time.strftime("%Y-%m-%d %H:%M:%S %Z"),
-    )
-    html_path = out / "report.html"
-    html_path.write_text(html, encoding="utf-8")
-    say(f"wrote {html_path}")
-    return ReportPaths(
-        html=html_path,
-        results_json=results_json,
-        figures=tuple(written_figs),
-        tables=tuple(written_tables),
-        metrics=tuple(results),
-        seconds=time.perf_counter() - start,
     )
 
 

@@ -1,23 +1,8 @@
 """Long-format CSV in, readable statistics out: the I/O edge of :mod:`analysis.stats`.
 
-:func:`read_long_csv` validates a CSV for ``asa stats`` and names the file, the column and the
-line of anything wrong; :func:`format_p`, :func:`apa_anova` and :func:`format_summary` turn
-the object of :func:`analysis.stats.analyse` into APA-style text (thesis Sec. 7.6.2 reports
-"p < 0.001"; the issue asks for "F(2, 34) = 25.76, p < .001, eta_p^2 = .60").
-
-Decisions where the spec is silent
-----------------------------------
-- Every column is read as text; the dv is then converted, so an id such as ``007`` stays
-  ``"007"``. Empty cells and the usual missing markers (``NA``, ``NaN``, ``null``...) in the
-  dv are missing values (the subject is later dropped listwise); any other non-number is an
-  error naming the first offending line (physical line of the file, header = line 1).
-  Spaces after the delimiter are ignored; blank lines are skipped.
-- An empty subject or level cell is an error (a row nobody can be attributed to).
-- A missing file raises ``FileNotFoundError`` (the CLI prints "FILE: no such file");
-  everything else is a ``ValueError`` starting with the file name.
-- APA style: p with three decimals and no leading zero, "p < .001" below .001; F with two
-  decimals; eta squared with two decimals and no leading zero. When the gate used the
-  Greenhouse-Geisser p, :func:`apa_anova` reports the eps-scaled dfs with two decimals.
+:func:`read_long_csv` validates a CSV and names the file, the column and the line of anything
+wrong; :func:`format_p`, :func:`apa_anova` and :func:`format_summary` turn the object of
+:func:`analysis.stats.analyse` into APA-style text (thesis Sec. 7.6.2).
 """
 
 from __future__ import annotations
@@ -30,7 +15,12 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-__all__ = ["apa_anova", "format_p", "format_summary", "read_long_csv"]
+__all__ = ["SameColumnError", "apa_anova", "format_p", "format_summary", "read_long_csv"]
+
+
+class SameColumnError(ValueError):
+    """``dv``, ``within`` and ``subject`` of :func:`read_long_csv` name fewer than three
+    different columns (a ``ValueError``; the CLI words it with its flags)."""
 
 
 def read_long_csv(path: str | Path, *, dv: str, within: str, subject: str) -> pd.DataFrame:
@@ -55,10 +45,35 @@ def read_long_csv(path: str | Path, *, dv: str, within: str, subject: str) -> pd
         The file does not exist.
     ValueError
         ``"FILE: ..."``: not a readable CSV, a column missing (listing the available ones),
-        the same column given twice, an empty id cell, a non-numeric or infinite dv value
-        (naming its line and value), or fewer than two levels.
+        the same column given twice (:class:`SameColumnError`), an empty id cell, a
+        non-numeric or infinite dv value (naming its line and value), or fewer than two levels.
     """
     path = Path(path)
+    raw = _read_raw(path)
+    _check_roles(path, [str(c) for c in raw.columns], dv=dv, within=within, subject=subject)
+    for column in (subject, within):
+        _check_ids(path, raw, column)
+    values = _dv_values(path, raw, dv)
+    levels = list(pd.unique(raw[within].str.strip()))
+    if len(levels) < 2:
+        found = ", ".join(repr(level) for level in levels) or "none"
+        raise ValueError(
+            f"{path}: column {within!r}: only {len(levels)} level ({found}); a "
+            f"repeated-measures ANOVA needs at least two"
+        )
+    return pd.DataFrame(
+        {
+            subject: raw[subject].str.strip(),
+            within: raw[within].str.strip(),
+            dv: values.astype(float),
+        },
+        index=raw.index,
+    )
+
+
+def _read_raw(path: Path) -> pd.DataFrame:
+    """Every cell as text, indexed by the file's line number (header = line 1), blank lines
+    dropped."""
     if not path.exists():
         raise FileNotFoundError(errno.ENOENT, "no such file", str(path))
     if path.is_dir():
@@ -85,10 +100,11 @@ def read_long_csv(path: str | Path, *, dv: str, within: str, subject: str) -> pd
         raise ValueError(f"{path}: empty file; expected a header row naming the columns") from None
     except pd.errors.ParserError as error:
         raise ValueError(f"{path}: not a valid CSV ({' '.join(str(error).split())})") from None
-
     raw.index = pd.RangeIndex(2, len(raw) + 2, name="line")  # header is line 1
-    raw = raw.dropna(how="all")  # blank lines
-    columns = [str(c) for c in raw.columns]
+    return raw.dropna(how="all")  # blank lines
+
+
+def _check_roles(path: Path, columns: list[str], *, dv: str, within: str, subject: str) -> None:
     available = ", ".join(repr(c) for c in columns) or "none"
     roles = {"dv": dv, "within": within, "subject": subject}
     for role, column in roles.items():
@@ -97,16 +113,21 @@ def read_long_csv(path: str | Path, *, dv: str, within: str, subject: str) -> pd
                 f"{path}: column {column!r} ({role}) not found; available columns: {available}"
             )
     if len(set(roles.values())) < 3:
-        raise ValueError(
-            f"{path}: --dv, --within and --subject must name three different columns, "
+        raise SameColumnError(
+            f"{path}: dv, within and subject must name three different columns, "
             f"got {dv!r}, {within!r}, {subject!r}"
         )
 
-    for column in (subject, within):
-        empty = raw[column].isna() | (raw[column].str.strip() == "")
-        if empty.any():
-            line = int(raw.index[np.flatnonzero(empty.to_numpy())[0]])
-            raise ValueError(f"{path}: column {column!r} line {line}: empty cell")
+
+def _check_ids(path: Path, raw: pd.DataFrame, column: str) -> None:
+    empty = raw[column].isna() | (raw[column].str.strip() == "")
+    if empty.any():
+        line = int(raw.index[np.flatnonzero(empty.to_numpy())[0]])
+        raise ValueError(f"{path}: column {column!r} line {line}: empty cell")
+
+
+def _dv_values(path: Path, raw: pd.DataFrame, dv: str) -> pd.Series:
+    """The dv as numbers (NaN = missing); a non-number or an infinity is an error."""
     text = raw[dv].str.strip()
     values = pd.to_numeric(text, errors="coerce")
     bad = values.isna() & text.notna() & (text != "")
@@ -120,22 +141,7 @@ def read_long_csv(path: str | Path, *, dv: str, within: str, subject: str) -> pd
     if infinite.any():
         line = int(raw.index[np.flatnonzero(infinite)[0]])
         raise ValueError(f"{path}: column {dv!r} line {line}: {raw.loc[line, dv]!r} is not finite")
-
-    levels = list(pd.unique(raw[within].str.strip()))
-    if len(levels) < 2:
-        found = ", ".join(repr(level) for level in levels) or "none"
-        raise ValueError(
-            f"{path}: column {within!r}: only {len(levels)} level ({found}); a "
-            f"repeated-measures ANOVA needs at least two"
-        )
-    return pd.DataFrame(
-        {
-            subject: raw[subject].str.strip(),
-            within: raw[within].str.strip(),
-            dv: values.astype(float),
-        },
-        index=raw.index,
-    )
+    return values
 
 
 # --------------------------------------------------------------------------------------------
@@ -266,6 +272,16 @@ def format_summary(
         "",
         "Descriptives",
     ]
+    out += _descriptives_lines(result, within)
+    out += _anova_lines(result, alpha=alpha, gate=gate)
+    out += _posthoc_lines(result, alpha)
+    if result["warnings"]:
+        out += ["", "Warnings"]
+        out += [f"  - {warning}" for warning in result["warnings"]]
+    return "\n".join(out)
+
+
+def _descriptives_lines(result: dict, within: str) -> list[str]:
     rows = [
         [
             level,
@@ -276,10 +292,13 @@ def format_summary(
         ]
         for level, d in result["descriptives"].items()
     ]
-    out += _table([within, "n", "mean", "sd", "se"], rows)
+    return _table([within, "n", "mean", "sd", "se"], rows)
 
+
+def _anova_lines(result: dict, *, alpha: float, gate: str) -> list[str]:
+    """The ANOVA, Mauchly, Greenhouse-Geisser and gate lines."""
     anova, sph, gg = result["anova"], result["sphericity"], result["greenhouse_geisser"]
-    out += [
+    out = [
         "",
         "Repeated-measures ANOVA",
         f"  {apa_anova(result)}, eta_G^2 = {_num(anova['ng2'], zero=False)}",
@@ -301,26 +320,25 @@ def format_summary(
         f"  gate ({gate}): p {format_p(result['p_gate'])} -> {verdict} at alpha = "
         f"{_no_leading_zero(f'{alpha:g}')}"
     )
+    return out
 
-    posthoc = result["posthoc"]
+
+def _posthoc_lines(result: dict, alpha: float) -> list[str]:
+    """Both LSD tables, or the line saying they were not run."""
+    if not result["posthoc"]["ran"]:
+        return ["", "Post hoc: not run (the gate did not pass)"]
+    anova, posthoc = result["anova"], result["posthoc"]
     confidence = f"{100 * (1 - alpha):g}% CI"
-    if posthoc["ran"]:
-        n = result["n_subjects"]
-        out += [
-            "",
-            f"Fisher's LSD, paired (each pair's own differences, df = {n - 1}; {confidence})",
-        ]
-        out += _pair_table(posthoc["lsd_paired"])
-        out += [
-            "",
-            f"Fisher's LSD, pooled (MS_error = {_num(anova['ms_error'], 4)}, "
-            f"df = {anova['df_error']}; {confidence})",
-        ]
-        out += _pair_table(posthoc["lsd_pooled"])
-    else:
-        out += ["", "Post hoc: not run (the gate did not pass)"]
-
-    if result["warnings"]:
-        out += ["", "Warnings"]
-        out += [f"  - {warning}" for warning in result["warnings"]]
-    return "\n".join(out)
+    n = result["n_subjects"]
+    out = [
+        "",
+        f"Fisher's LSD, paired (each pair's own differences, df = {n - 1}; {confidence})",
+    ]
+    out += _pair_table(posthoc["lsd_paired"])
+    out += [
+        "",
+        f"Fisher's LSD, pooled (MS_error = {_num(anova['ms_error'], 4)}, "
+        f"df = {anova['df_error']}; {confidence})",
+    ]
+    out += _pair_table(posthoc["lsd_pooled"])
+    return out

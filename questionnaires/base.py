@@ -1,37 +1,11 @@
 """Generic questionnaire items and instruments, shared by every instrument.
 
-An :class:`Instrument` is an ordered tuple of :class:`Item` s. Each item carries
-everything a screen needs to render it without knowing the instrument (the
-question text, a short title, the kind of widget, the allowed values with their
-display labels, the endpoint anchors) and everything needed to validate an
-answer. The participant's screen renders any instrument generically; the
-synthetic participant answers it from the same description; storage keeps one
-``(instrument, item, value)`` row per answer (DESIGN.md, "Data").
-
-Item kinds
-----------
-``"slider"``
-    An integer scale with tick marks ``values`` (e.g. NASA-TLX: 0, 5, ..., 100)
-    and two endpoint ``anchors`` (low, high).
-``"likert"``
-    A few ordered integer points ``values`` (e.g. 1..5), each with a display
-    label in ``labels``; ``anchors`` repeat the two end labels.
-``"choice"``
-    One of a set of unordered string codes ``values`` with display ``labels``.
-``"number"``
-    A whole number from ``minimum`` to ``maximum`` (e.g. age in years).
-
-Decisions where no source speaks
---------------------------------
-- Answers are whole numbers for slider, likert and number items. A float that
-  is exactly whole (``55.0``, as a CSV round trip may produce) is accepted and
-  returned as ``int``; ``True``/``False`` are refused, never read as 1/0.
-- An item may be ``optional`` (missing or ``None`` is accepted and returned as
-  ``None``) and may allow declining (``can_decline``): the code
-  :data:`DECLINE` (shown as "Prefer not to say") is then a valid answer of any
-  kind. Declining is recorded as such, distinct from not answering.
-- Every error is a ``ValueError`` naming the source (a file name if the caller
-  gives one, else the instrument id), the item id and what is allowed.
+An :class:`Instrument` is an ordered tuple of :class:`Item` s. Each item carries everything
+a screen needs to render it without knowing the instrument (the question text, a short
+title, the kind of widget, the allowed values with their display labels, the endpoint
+anchors) and everything needed to validate an answer. The participant's screen renders any
+instrument generically; the synthetic participant answers it from the same description;
+storage keeps one ``(instrument, item, value)`` row per answer (DESIGN.md, "Data").
 """
 
 from __future__ import annotations
@@ -63,7 +37,12 @@ class Item:
     text : str
         The question as shown to the participant.
     kind : {"slider", "likert", "choice", "number"}
-        The widget (see the module docstring).
+        The widget. ``"slider"``: an integer scale with tick marks ``values`` (e.g.
+        NASA-TLX: 0, 5, ..., 100) and two endpoint ``anchors`` (low, high). ``"likert"``:
+        a few ordered integer points ``values`` (e.g. 1..5), each with a display label in
+        ``labels``; ``anchors`` repeat the two end labels. ``"choice"``: one of a set of
+        unordered string codes ``values`` with display ``labels``. ``"number"``: a whole
+        number from ``minimum`` to ``maximum`` (e.g. age in years).
     values : tuple
         Allowed answers, in display order: ints for slider and likert, string
         codes for choice, empty for number.

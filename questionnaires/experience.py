@@ -1,29 +1,11 @@
 """The experience questionnaire filled in before the study.
 
-Thesis section 7.6.1.3: "an experience questionnaire before the user study
-reported that the majority of the human subjects have experience in driving,
-playing computer games or operating mobile robots", and the sample was
-described by age (24-32). The thesis does not print the questionnaire, so the
-items here are this platform's: short (six items), answerable in a minute, and
-enough for the paper's sample description.
-
-Items, in order:
-
-- ``age`` (number, years, 18..99; optional, may be declined). The lower bound is the
-  usual age of consent for adult-only studies; a protocol for minors would
-  need its own instrument and ethics approval anyway.
-- ``handedness`` (choice: right, left, ambidextrous; optional, may be declined), since
-  the gamepad's sticks and buttons are operated by both hands.
-- ``driving``, ``games`` (5-point frequency scales, "Never" .. "Daily").
-- ``gamepad`` (5-point familiarity scale, "Not at all familiar" .. "Extremely
-  familiar"): the study's input device.
-- ``robots`` (5-point experience scale, "None" .. "Expert") for mobile robots,
-  remote-controlled vehicles or drones.
-
-Summary decisions (the thesis gives none): someone "has experience" in a
-domain at 3 or more on its 5-point scale (driving or gaming at least monthly;
-some experience operating robots). ``experience_mean`` is the mean of the four
-5-point items (1..5), a rough single covariate.
+Thesis Sec. 7.6.1.3: "an experience questionnaire before the user study reported that the
+majority of the human subjects have experience in driving, playing computer games or
+operating mobile robots", and the sample was described by age (24-32). The thesis does not
+print the questionnaire, so the six items here are this platform's (:data:`INSTRUMENT`):
+``age``, ``handedness``, and 5-point scales for ``driving``, ``games``, ``gamepad`` and
+``robots``.
 """
 
 from __future__ import annotations

@@ -1,36 +1,14 @@
 """NASA Task Load Index: the six rating scales, the 15 pairwise comparisons, scoring.
 
-Thesis section 7.6.1.2 administers the NASA-TLX (Hart & Staveland 1988, the
-thesis's reference [81]) after every trial; spec section 7. The wording of the
-six scales follows the NASA-TLX paper-and-pencil manual (NASA Ames Research
-Center, 1986): titles, the "Rating Scale Definitions" as each item's
-``description``, the rating-sheet questions as its ``text`` and the endpoints
-"Very Low"/"Very High" ("Perfect"/"Failure" for Performance).
-
-Procedure and scoring (manual):
-
-- Ratings: each scale is marked at one of 21 ticks, recorded 0..100 in steps
-  of 5. Every scale is oriented so that higher means more workload (for
-  Performance 0 = "Perfect", 100 = "Failure"), so no scale is reversed.
-- Weights: the 15 pairs of scales are presented one at a time in random order
-  with random left/right placement; for each the participant picks the one that
-  contributed more to the workload. A scale's weight is how often it was
-  picked (0..5); the weights sum to 15.
-- Adjusted rating = rating * weight; weighted workload = sum of adjusted
-  ratings / 15. The raw ("RTLX") score is the unweighted mean of the six
-  ratings (Hart 2006).
-
-Decisions where the sources are silent:
-
-- The canonical order of the 15 pairs is lexicographic in the order of the
-  scales (mental-physical, mental-temporal, ..., effort-frustration); the
-  manual's card deck is shuffled anyway (:func:`presentation_order`).
-- A pair is stored under :func:`pair_id`, always in canonical orientation
-  (``"mental_vs_physical"``), whatever side each scale was shown on.
-- Weights given directly (not from choices) must be whole numbers 0..5 summing
-  to 15 and must be achievable by some set of 15 choices (Landau's condition
-  on tournament score sequences): e.g. three scales at 5 are impossible, since
-  two of them met each other once.
+Thesis Sec. 7.6.1.2 administers the NASA-TLX (Hart & Staveland 1988, the thesis's
+reference [81]) after every trial; spec section 7. The wording of the six scales follows the
+NASA-TLX paper-and-pencil manual (NASA Ames Research Center, 1986): titles, the "Rating
+Scale Definitions" as each item's ``description``, the rating-sheet questions as its
+``text`` and the endpoints "Very Low"/"Very High" ("Perfect"/"Failure" for Performance).
+Each scale is marked at one of 21 ticks, recorded 0..100 in steps of 5, and oriented so that
+higher means more workload (no scale is reversed). In the 15 pairwise comparisons the
+participant picks the scale that contributed more to the workload; a scale's weight is how
+often it was picked (0..5, summing to 15). Scoring: :func:`score`.
 """
 
 from __future__ import annotations
@@ -353,9 +331,10 @@ def weights_from_choices(choices: Mapping[tuple[str, str] | str, str]) -> dict[s
 def score(ratings: Mapping[str, int], weights: Mapping[str, int] | None = None) -> TlxScore:
     """Raw and (with weights) weighted NASA-TLX workload.
 
-    ``raw = mean(r_i)``, ``weighted = sum(r_i * w_i) / 15`` over the six subscales
-    i, with ratings r_i in 0..100 and weights w_i = times chosen in the pairwise
-    comparisons (Hart & Staveland 1988; NASA-TLX manual, "Scoring").
+    ``raw = mean(r_i)`` (the "RTLX", Hart 2006), ``adjusted_i = r_i * w_i`` and
+    ``weighted = sum(adjusted_i) / 15`` over the six subscales i, with ratings r_i in
+    0..100 and weights w_i = times chosen in the pairwise comparisons (Hart & Staveland
+    1988; NASA-TLX manual, "Scoring").
 
     Parameters
     ----------

@@ -13,7 +13,7 @@ from pathlib import Path
 import click
 
 from analysis.stats import GATES, analyse
-from analysis.tables import format_summary, read_long_csv
+from analysis.tables import SameColumnError, format_summary, read_long_csv
 
 
 @click.command()
@@ -57,7 +57,13 @@ def stats(
     Subjects lacking a level are dropped (named in a warning); several rows for one subject
     and level are averaged.
     """
-    frame = read_long_csv(csv_path, dv=dv, within=within, subject=subject)
+    try:
+        frame = read_long_csv(csv_path, dv=dv, within=within, subject=subject)
+    except SameColumnError:
+        raise ValueError(
+            f"{csv_path}: --dv, --within and --subject must name three different columns, "
+            f"got {dv!r}, {within!r}, {subject!r}"
+        ) from None
     try:
         result = analyse(frame, dv=dv, within=within, subject=subject, alpha=alpha, gate=gate)
     except ValueError as error:

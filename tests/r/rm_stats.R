@@ -1,8 +1,8 @@
 #!/usr/bin/env Rscript
-# Reference computation, in base R, of what `asa stats` reports (analysis/stats.py).
+# Reference computation, in base R, of what `asa stats` reports (analysis/stats/).
 #
 # It produced nothing stored in this repository by itself: R is not installed on the machine
-# where the tests were written, so the tests check analysis/stats.py against independent
+# where the tests were written, so the tests check analysis/stats/ against independent
 # Python computations (explicit loops, statsmodels' AnovaRM, scipy's ttest_rel, R's
 # mauchly.test algorithm transcribed into the test, pingouin) and against the published SPSS
 # output of Field's "Bushtucker" example (Field, A., Discovering Statistics Using SPSS,
