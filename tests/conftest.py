@@ -12,7 +12,7 @@ from threadpoolctl import threadpool_limits
 os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
 os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
 
-# As `asa` does (study.cli.limit_blas_threads): small matrices, two cores, no contention.
+# As `asa` does (study._blas.limit_blas_threads): small matrices, two cores, no contention.
 threadpool_limits(1, user_api="blas")
 
 

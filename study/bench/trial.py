@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from autonomy.types import Mode
 from study.engine.standalone import standalone_trial
 from study.engine.trial import TrialWriter
 from study.participants import ScriptedParticipant
@@ -24,7 +25,7 @@ MODES = ("manual", "reactive_bn", "contextual_task")
 _SEED = 7061
 
 
-class _TimedMode:
+class _TimedMode(Mode):
     """A mode whose ``step`` is timed (everything else passes through)."""
 
     def __init__(self, mode: Any) -> None:
@@ -39,6 +40,9 @@ class _TimedMode:
         out = self.mode.step(obs, u)
         self.step_s.append(time.perf_counter() - start)
         return out
+
+    def label_tasks(self) -> dict[str, str] | None:
+        return self.mode.label_tasks()
 
 
 def _summary(values_ms: list[float]) -> dict[str, float]:
