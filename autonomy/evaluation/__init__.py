@@ -177,7 +177,7 @@ from sklearn.svm import SVC
 from autonomy.baseline_recogniser import ExponentialBaseline
 from autonomy.bayes_filter import BayesFilterRecogniser, fit_user_models, target_features
 from autonomy.features import FeatureScaler, encode, wrap_angle
-from autonomy.recognition_metrics import trajectory_rates
+from autonomy.evaluation.metrics import trajectory_rates
 from autonomy.sogp import MAX_LENGTH_SCALE
 from autonomy.sogp_classifier import SOGPClassifier, argmax_finite, normalised_entropy
 
