@@ -56,7 +56,7 @@ import numpy as np
 from scipy.linalg import LinAlgError, cho_factor, cho_solve
 
 from autonomy.features import ENCODED_NAMES, FeatureScaler
-from autonomy.sogp import se_ard_kernel
+from autonomy.gp_kernel import se_ard_kernel
 from autonomy.sogp_classifier import SOGPClassifier
 
 FORMAT_VERSION = 2  # 2: angle encoded as |u_xy| (cos, sin); capacity 250

@@ -55,7 +55,8 @@ from typing import Any
 import numpy as np
 from scipy.special import ndtr
 
-from autonomy.sogp import MAX_LENGTH_SCALE, SparseOnlineGP, fit_hyperparameters
+from autonomy.gp_hyperparameters import fit_hyperparameters
+from autonomy.sogp import MAX_LENGTH_SCALE, SparseOnlineGP
 
 
 class SOGPClassifier:
@@ -69,7 +70,7 @@ class SOGPClassifier:
         Size of the class-balanced subsample on which the evidence is maximised.
     restarts : int
         L-BFGS-B runs per class for the hyperparameters (see
-        :func:`autonomy.sogp.fit_hyperparameters`).
+        :func:`autonomy.gp_hyperparameters.fit_hyperparameters`).
     max_length_scale : float
         Upper bound of the length scales, in standard deviations of the inputs.
     refine : bool
