@@ -216,19 +216,11 @@ def train(
 ) -> ContextualModel:
     """Train a contextual-task model on unlabelled task features.
 
-    1. Encode the angle as (cos, sin) and standardise every column
-       (:class:`~autonomy.features.FeatureScaler`);
-    2. cluster the way points with a Dirichlet-process Gaussian mixture, restarted
-       ``settings.restarts`` times keeping the highest evidence lower bound (Sec. 7.4.1;
-       :func:`cluster_dpgmm`); every point's cluster is its most probable component, and
-       tiny clusters are merged; the survivors are the motion primitives;
-    3. train the one-vs-all SOGP classifier over the primitives (Ch. 5,
-       :func:`fit_classifier`);
-    4. keep per primitive the GMR points ``(s*, u*)`` of the fast online GMR (Alg. 2) and
-       the mean and covariance of the Mahalanobis stop of the rollout (Eq. 6.3).
-
-    The true task types ``task`` serve only the cluster summary; nothing in the model
-    depends on them.
+    Encode and standardise the features; cluster the way points with a DP-GMM
+    (:func:`cluster_dpgmm`, Sec. 7.4.1), tiny clusters merged: the motion primitives;
+    train the one-vs-all SOGP classifier over them (Ch. 5, :func:`fit_classifier`); keep
+    per primitive the GMR points ``(s*, u*)`` (Alg. 2) and the mean and covariance of the
+    rollout's Mahalanobis stop (Eq. 6.3). ``task`` serves only the cluster summary.
 
     Parameters
     ----------
