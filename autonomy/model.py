@@ -196,8 +196,8 @@ def load_model(path: str | Path | None = None) -> ContextualModel:
     path = Path(DEFAULT_MODEL if path is None else path)
     if not path.is_file():
         raise ValueError(
-            f"{path}: model file not found (train one with `asa train --demonstrations DIR "
-            f"--out MODEL`; see autonomy/models/README.md)"
+            f"{path}: model file not found (train one with `asa train`; see "
+            f"autonomy/models/README.md)"
         )
     try:
         with np.load(path, allow_pickle=False) as data:

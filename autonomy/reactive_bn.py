@@ -34,7 +34,7 @@ _WINDINGS = (2 * math.pi * np.array([-1.0, 0.0, 1.0]))[:, None]  # shifts of the
 
 @dataclass(frozen=True, slots=True)
 class ReactiveSettings:
-    """Settings of the reactive mode (values: see the module docstring)."""
+    """Settings of the reactive mode (choices: docs/decisions.md)."""
 
     sector_deg: float = 5.0  # [deg] angular width of a sector (thesis: 5)
     zone_radius: float = 1.0  # [m] security zone around the robot's centre
