@@ -317,8 +317,8 @@ def test_hard_negatives_are_other_candidates_of_the_same_tick(rng):
 
 def test_cache_records_once_and_checks_the_hash(recorded, tmp_path, monkeypatch):
     from autonomy.training import data_sha256
-    from study.jobs.evaluation import cache_root, cached_demonstrations
     from study.jobs.demonstrations import load_demonstrations
+    from study.jobs.evaluation import cache_root, cached_demonstrations
 
     monkeypatch.setenv("ASA_CACHE", str(tmp_path / "cache"))
     assert cache_root() == tmp_path / "cache"
