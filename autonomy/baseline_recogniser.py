@@ -11,20 +11,7 @@ angle between the robot's heading and the target [rad], except for wall followin
 The scales are hand-tuned per task type. The recognised state is the one with the highest
 ``c``; below ``threshold`` the decision is null ("no task identified", the yellow spheres of
 Figs. 7.4-7.13). The baseline is reactive: it keeps no memory and ignores the user input.
-
-Decisions where the thesis is silent:
-
-- The reference angle ``psi_ref`` in ``beta = ||psi| - psi_ref|`` is a per-task-type
-  setting; by default pi/2 for task types targeting walls and 0 for all others (the
-  chapter-7 definitions cover doorway, object, wall and dock; gap crossing follows the
-  doorway and object bypass the object).
-- Eq. (7.5) multiplies ``alpha`` and ``beta``, so ``c = 1`` whenever either is 0 (any
-  target dead ahead, at any distance). This is implemented as printed; the setting
-  ``form="sum"`` gives ``exp(-k_alpha alpha - k_beta beta)`` for comparison.
-- Default scales ``k_alpha = 1 / m``, ``k_beta = 1 / rad`` and threshold 0.5 are
-  placeholders for the hand tuning the thesis did on its data.
-- Ties (e.g. inspection and bypass of the same object share alpha and beta) go to the
-  first state in task-type order of ``kinds``, then candidate order.
+Choices where the thesis is silent: docs/decisions.md.
 """
 
 from __future__ import annotations

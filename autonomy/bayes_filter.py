@@ -14,36 +14,7 @@ command ``u``: ``d = |s|`` [m], ``psi = atan2(s_y, s_x)`` (the angle between the
 heading and the target) and ``theta = wrap(atan2(u_y, u_x) - psi)`` (the angle between the
 translational input and the target), both in (-pi, pi] [rad] (thesis footnote 2 of Ch. 4:
 the target point is the doorway/dock centre or the nearest surface point, as in the
-recorded demonstrations).
-
-Decisions where the thesis and spec are silent:
-
-- Angles are modelled raw, in (-pi, pi], as the thesis does; the seam at +-pi is not
-  unwrapped (driving away from a target, theta ~ pi, is rare in the demonstrations).
-- The user model's likelihood is the full conditional mixture density (4.5) evaluated at
-  ``(psi, theta)`` [1/rad^2], computed in log space; the filter normalises in log space, so
-  inputs far from every component still give a finite, normalised belief.
-- GMMs are fitted with scikit-learn's ``GaussianMixture`` (full covariances, EM, k-means++
-  seeds from the passed-in Generator rather than a full k-means, which is ~10x slower here,
-  ``n_init`` restarts), with
-  ``reg_covar`` 1e-4 (a floor of 1 cm / 0.01 rad on the standard deviations, so that
-  near-constant columns of scripted demonstrations do not make singular components). The
-  BIC is Eq. (4.11) with ``l`` the training log-likelihood and ``n_p`` from Eq. (4.12);
-  ``h`` runs from 1 to ``min(max_components, n // (n_p(1) + 1))`` so every candidate has
-  more points than parameters per component.
-- Candidates come and go between ticks (the robot sees different components). Belief is
-  carried by ``(task type, candidate id)``: states that vanish are dropped; a new state
-  enters with belief ``new_prior`` (default 0.01), the survivors share the rest in their old
-  proportions; on the first tick, or when the new states would take all the mass, the
-  prior is uniform. The transition (4.14) is then applied over the current states:
-  ``b_pred(x) = sigma b(x) + (1 - sigma) (1 - b(x)) / (N - 1)``.
-- A tick whose translational input is below ``min_speed`` (no input direction, so theta is
-  undefined) gets the prediction step only, no user-model update.
-- Candidates whose kind no task type targets are ignored; two task types targeting the same
-  kind (object inspection and bypass) give two states per object.
-- Null decision: the MAP belief below ``null_threshold`` (default 0.5, i.e. the MAP state is
-  not more likely than all others together) gives ``task = target = None``. With no state
-  at all the decision is null with confidence 0.
+recorded demonstrations). Choices where the thesis is silent: docs/decisions.md.
 """
 
 from __future__ import annotations

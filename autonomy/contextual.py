@@ -1,96 +1,12 @@
 """Contextual-task aware shared autonomy (thesis Ch. 5-6, Sec. 7.6.1.2; spec sections 3-4;
 issue 3), registered as the mode ``"contextual_task"``.
 
-Per control tick, with the user's command ``u`` and the semantic components of the scene
-in the robot frame (``obs.components``, duck-typed: ``.id``, ``.kind``, ``.points``,
-``.target_point()``):
-
-1. candidates: the ``candidates`` components whose target points ``s`` are nearest the
-   robot (Sec. 5.1, 6.1);
-2. per candidate the task feature ``q* = (s, theta, u)`` with ``u`` normalised by the
-   robot's limits (Sec. 5.1), encoded (cos, sin) and standardised by the model's scaler;
-3. recognition (Eqs. 5.6, 5.8, 5.10): the largest SOGP posterior mean over clusters x
-   candidates picks the target (the candidate) and the motion primitive (the cluster);
-   ``beta = Phi(mu / sqrt(var))`` of that winner (Sec. 6.2.3);
-4. rollout (Alg. 3): from the robot's pose (the origin of the robot frame) repeat: ``s*``
-   = the target seen from the rolled-out pose (for objects and walls the surface point
-   nearest that pose); ``u*`` = the fast online GMR of the primitive (Alg. 2; input ``s*``,
-   output ``u*``); ``q_est = (s*, theta*, u*)``; stop when its Mahalanobis distance to
-   the primitive's mean and covariance exceeds ``mahalanobis_stop`` (Eq. 6.3) or after
-   ``rollout_steps`` steps; otherwise integrate the holonomic kinematics for ``dt`` and
-   append the pose. The loop is bounded, so the rollout always terminates;
-5. ``g`` = the holonomic pure-pursuit controller following the predicted path
-   (:mod:`autonomy.tracking`; the thesis used ROS navigation);
-6. ``v = blend(u, g, beta)`` (Eq. 3.2), then the safety layer
-   (:func:`autonomy.safety.safe_command`, thesis footnote 31) scales ``v`` until it is
-   collision-free over ``safety_horizon_s`` against the current laser points;
-7. the :class:`~autonomy.types.Assist` carries ``v``, ``g``, ``beta``, the primitive's name
-   as ``label``, the component id as ``target``, per-candidate best posterior mean as
-   ``scores``, the predicted path (k, 3) and the timings.
-
-Without a model (``model_path=""``) or without candidates (no semantic components) the
-mode behaves as manual control: ``g = u``, ``beta = 0``, empty label, target and path; the
-safety layer still checks the command (it belongs to this condition, Sec. 7.6.1.2). A
-``model_path`` that does not exist is an error (``ValueError`` naming the file) when the
-mode is built, not a silent fallback.
-
-Decisions where the spec is silent:
-
-- Speed. The tick budget (p95 < 5 ms with 10 candidates on one core) rules out calling
-  :class:`autonomy.gmr.FastOnlineGMR` at every rollout step: its EM (``em_diagonal``, with
-  random k-means++ seeding) costs about 1 ms for 10 points, i.e. 60 ms for a 60-step
-  rollout. The rollout therefore runs the same Alg. 2 pipeline in a lean form here
-  (:class:`LocalGMR`): the k nearest points by ``cKDTree``, EM for 2 diagonal components
-  with a fixed number of iterations and *deterministic* seeds (the point of the local set
-  nearest its mean and the point farthest from that one), and Gaussian mixture regression
-  (Eqs. 4.5-4.8; with diagonal covariances each component predicts its own output mean).
-  With deterministic seeding the local fit is a function of the neighbour set alone, so it
-  is cached per neighbour set (exact, bounded). The tests check the regression against
-  :func:`autonomy.gmr.gmr`.
-- Recognition uses the SOGPs' arrays directly: the posterior means of all candidates and
-  clusters (one kernel matrix per cluster, Eq. 5.6), and the variance (Eq. 5.9) only for
-  the winner, which is all Eq. 5.10 needs; the tests check it against
-  :func:`autonomy.sogp_classifier.recognise`.
-- ``u*`` is re-evaluated every ``gmr_every`` = 4 rollout steps (every 0.2 s, the 5 Hz
-  way-point rate of the thesis's demonstrations, Sec. 7.3 footnote 11) and held in
-  between; ``s*``, ``q_est`` and the Mahalanobis stop are evaluated at every step. With 5
-  EM iterations this keeps a 60-step rollout within the tick budget even when no local fit
-  is cached (measured: see ``asa bench --only autonomy``).
-- Yielding. Blending by the confidence alone can deadlock: near an obstacle the predicted
-  path may lead into it, the safety layer stops the robot, and with ``beta`` near 1 the
-  user's command (say, a turn away) has no effect, tick after tick (seen with scripted
-  drivers at a gap of ``practice_course``). When the safety layer scales the blended
-  command below ``yield_below_scale`` and the user's own command is freer, the mode
-  yields for that tick: ``v`` = the user's safe command, ``beta`` = 0 (stored as such).
-- ``u*`` from the GMR is clipped to the normalised range [-1, 1] before it is integrated.
-  The kinematics are integrated with the mid-step heading (second order).
-- If the rollout stops at its first step (the first ``q_est`` is already an outlier of the
-  primitive), the path is empty and ``g = u``: nothing was predicted to assist with.
-- The Mahalanobis statistics live in the model's standardised encoded feature space
-  (7 dims; :mod:`autonomy.training`).
-- No assistance without translational input: when ``|u_xy|`` in the normalised units is
-  below ``min_input`` (0.05, i.e. 5 % of full stick deflection; 0.025 m/s on the default
-  robot), the mode behaves as manual control (``beta = 0``, ``v = u`` through the safety
-  layer). There is then no input direction, so the task feature carries no intention
-  (the demonstrations keep only moving ticks, so the model never saw such inputs), and a
-  driver who lets go of the stick must not be moved by the assistance.
-- A recognition with no finite score (:func:`autonomy.sogp_classifier.argmax_finite`)
-  also falls back to manual control.
-- The local GMM's variance floor is relative to the primitive's data scale
-  (``1e-3 *`` the column variance of its GMR points, as :mod:`autonomy.gmr`).
-- Per-tick cost (a synthetic study runs some 15k ticks per participant on 2 cores). The
-  outputs are those of the plain formulation (``tests/test_contextual_equivalence.py``
-  keeps it and compares: equal to 1e-12, the EM fits bit for bit), computed with less
-  overhead: all target points in one call where the components offer
-  ``target_points()`` (``sim.semantics.RobotFrameComponents``, found by duck typing;
-  a plain sequence is asked component by component), and nothing read from the
-  components on ticks without input; the recogniser's kernels of all clusters in a few
-  batched operations over the stacked (zero-padded) basis vectors; the local EM with
-  direct ufunc reductions and ``numpy.dot`` (the same arithmetic); the GMR prediction in
-  scalar arithmetic with the fit's per-component constants cached with it; the
-  rollout's Mahalanobis map folded into one (7, 8) matrix per cluster. Measured on a
-  scripted ``cluttered_room`` trial, a cold cache's local EM fits (a new neighbour set
-  for about half the GMR queries, some 100-150 us each) remain the largest share.
+Per tick: the nearest semantic components are the candidates (Sec. 5.1, 6.1); the SOGP
+classifier recognises the target and the motion primitive (Eqs. 5.6, 5.8, 5.10); the
+rollout predicts the primitive's path (Alg. 3); a pure-pursuit controller follows it,
+the command is blended by the confidence (Eq. 3.2) and checked by the safety layer.
+Without a model, candidates or input the mode is manual control through the safety
+layer. Choices where the thesis is silent: docs/decisions.md.
 """
 
 from __future__ import annotations
@@ -102,13 +18,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy.spatial import cKDTree
 from scipy.special import ndtr
 
 from autonomy.arbitration import blend
 from autonomy.features import encode, task_features
-from autonomy.gmr import data_scale
-from autonomy.model import DEFAULT_MODEL, GMR_INPUT, ContextualModel, load_model
+from autonomy.local_gmr import LocalGMR
+from autonomy.model import DEFAULT_MODEL, ContextualModel, load_model
 from autonomy.modes import register, settings_from
 from autonomy.safety import safe_command
 from autonomy.sogp_classifier import argmax_finite
@@ -118,7 +33,7 @@ from autonomy.types import EMPTY_PATH, Assist, RobotModel
 
 @dataclass(frozen=True, slots=True)
 class ContextualSettings:
-    """Settings of the contextual-task mode (values: see the module docstring)."""
+    """Settings of the contextual-task mode (choices: docs/decisions.md)."""
 
     model_path: str = str(DEFAULT_MODEL)  # "" = no model: manual behaviour
     candidates: int = 10  # nearest semantic components considered
@@ -238,165 +153,6 @@ class Recogniser:
         return i, int(self.classes_[j]), beta, mean
 
 
-# --------------------------------------------------------------------------- local GMR
-
-
-def local_gmm(local: np.ndarray, *, iters: int, reg: float = 1e-3, scale: np.ndarray | None = None):
-    """EM for 2 diagonal Gaussian components on a small local set, deterministic seeds.
-
-    Parameters
-    ----------
-    local : numpy.ndarray
-        (k, D) points.
-    iters : int
-        EM iterations.
-    reg : float
-        Variance floor relative to ``scale``: ``reg * scale`` is added to every variance.
-    scale : numpy.ndarray, optional
-        (D,) per-column scale; default :func:`autonomy.gmr.data_scale` of ``local``.
-
-    Returns
-    -------
-    weights : (K,), means : (K, D), variances : (K, D) with K = 2, or 1 when all points
-    coincide.
-
-    Notes
-    -----
-    Speed (this runs for every new neighbour set of a rollout): the reductions call the
-    ufuncs' ``reduce`` directly (the array methods' wrappers cost more than the sums of
-    10 x 5 numbers), with the same arithmetic, so the fit is bit for bit that of the plain
-    formulation.
-    """
-    k = local.shape[0]
-    add = np.add.reduce
-    floor = reg * (data_scale(local) if scale is None else scale)
-    centre = add(local, axis=0) / k  # = local.mean(axis=0)
-    first = int(add((local - centre) ** 2, axis=1).argmin())
-    d2 = add((local - local[first]) ** 2, axis=1)
-    second = int(d2.argmax())
-    dev = local - add(local, axis=0, keepdims=True) / k
-    var0 = add(dev * dev, axis=0) / k  # = local.var(axis=0)
-    if not d2[second] > 0:
-        return np.ones(1), centre[None, :], (var0 + floor)[None, :]
-    mu = local[[first, second]]
-    var = np.empty((2, local.shape[1]))
-    var[:] = var0 + floor
-    log_w = np.array((-math.log(2.0), -math.log(2.0)))
-    sq = local * local
-    dot = np.dot  # = @ for these 2-D arrays (the same BLAS product), less call overhead
-    for _ in range(iters):
-        prec = 1.0 / var
-        # E step: log pi_c + log N(x; mu_c, diag var_c) up to a constant, (k, 2)
-        logp = (dot(local, (mu * prec).T) - 0.5 * dot(sq, prec.T)) + (
-            log_w - 0.5 * (add(mu * mu * prec, axis=1) + add(np.log(var), axis=1))
-        )
-        # the max and the sum over the 2 components as one elementwise operation each
-        r = np.exp(logp - np.maximum(logp[:, :1], logp[:, 1:]))
-        r /= r[:, :1] + r[:, 1:]
-        nk = add(r, axis=0) + 1e-12  # M step
-        log_w = np.log(nk / k)
-        rt, nkc = r.T, nk[:, None]
-        mu = dot(rt, local) / nkc
-        var = np.maximum(dot(rt, sq) / nkc - mu * mu, 0.0) + floor
-    w = np.exp(log_w)
-    return w, mu, var
-
-
-class LocalGMR:
-    """Fast online GMR of one primitive (Alg. 2) with a per-neighbour-set cache.
-
-    Parameters
-    ----------
-    points : numpy.ndarray
-        (N, 5) demonstration points ``(s_x, s_y [m], v_x, v_y, omega)`` of the primitive.
-    k : int
-        Neighbours per query.
-    iters : int
-        EM iterations of :func:`local_gmm`.
-    cache_size : int
-        Local fits kept (cleared when full).
-    """
-
-    def __init__(self, points: np.ndarray, *, k: int, iters: int, cache_size: int = 50000):
-        self.points_ = np.asarray(points, dtype=float)
-        self.scale_ = data_scale(self.points_)  # for the relative variance floor
-        self.tree_ = cKDTree(self.points_[:, list(GMR_INPUT)])
-        self.k = min(int(k), len(self.points_))
-        self.iters = int(iters)
-        self.cache_size = int(cache_size)
-        self.cache_: dict[bytes, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = {}
-        self.terms_: dict[bytes, tuple[tuple[float, ...], ...]] = {}
-
-    def _key(self, x: Any) -> bytes:
-        _, idx = self.tree_.query(x, k=self.k)  # Alg. 2: nearest neighbours
-        if self.k == 1:
-            idx = np.atleast_1d(np.asarray(idx, dtype=np.intp))
-        idx.sort()
-        return idx.tobytes()
-
-    def _fit(self, key: bytes):
-        fit = self.cache_.get(key)
-        if fit is None:
-            idx = np.frombuffer(key, dtype=np.intp)
-            w, mu, var = local_gmm(self.points_[idx], iters=self.iters, scale=self.scale_)
-            fit = (np.log(w), mu[:, :2], var[:, :2], mu[:, 2:])
-            if len(self.cache_) >= self.cache_size:
-                self.cache_.clear()
-                self.terms_.clear()
-            self.cache_[key] = fit
-        return fit
-
-    def fit_local(self, x: np.ndarray):
-        """The local mixture for query ``x`` (2,): (weights, means, variances)."""
-        return self._fit(self._key(x))
-
-    def predict(self, x: np.ndarray) -> np.ndarray:
-        """Predicted output ``u*`` (3,) for the input ``s*`` (2,) [m] (Eqs. 4.5-4.8)."""
-        log_w, mu_x, var_x, mu_y = self.fit_local(x)
-        diff = x - mu_x
-        logp = log_w - 0.5 * ((diff * diff / var_x).sum(axis=1) + np.log(var_x).sum(axis=1))
-        h = np.exp(logp - logp.max())  # Eqs. (4.6), (4.7)
-        return (h @ mu_y) / h.sum()  # Eq. (4.8), diagonal: mu_y|x = mu_y
-
-    def predict_xy(self, sx: float, sy: float) -> tuple[float, float, float]:
-        """:meth:`predict` for the input ``(sx, sy)`` [m] in scalar arithmetic (the
-        rollout's inner loop): the same Eqs. (4.5)-(4.8), per-component constants
-        cached with the local fit."""
-        key = self._key((sx, sy))
-        terms = self.terms_.get(key)
-        if terms is None:
-            log_w, mu_x, var_x, mu_y = self._fit(key)
-            log_det = np.log(var_x).sum(axis=1)
-            terms = tuple(
-                (
-                    float(log_w[c]),
-                    float(mu_x[c, 0]),
-                    float(mu_x[c, 1]),
-                    float(var_x[c, 0]),
-                    float(var_x[c, 1]),
-                    float(log_det[c]),
-                    float(mu_y[c, 0]),
-                    float(mu_y[c, 1]),
-                    float(mu_y[c, 2]),
-                )
-                for c in range(len(log_w))
-            )
-            self.terms_[key] = terms
-        logps = []
-        for lw, mx, my, vx, vy, ld, *_ in terms:
-            dx, dy = sx - mx, sy - my
-            logps.append(lw - 0.5 * ((dx * dx / vx + dy * dy / vy) + ld))
-        top = max(logps)
-        h_sum = o0 = o1 = o2 = 0.0
-        for lp, term in zip(logps, terms, strict=True):
-            h = math.exp(lp - top)  # Eqs. (4.6), (4.7)
-            h_sum += h
-            o0 += h * term[6]
-            o1 += h * term[7]
-            o2 += h * term[8]
-        return o0 / h_sum, o1 / h_sum, o2 / h_sum  # Eq. (4.8)
-
-
 # --------------------------------------------------------------------------- rollout
 
 
@@ -413,6 +169,8 @@ class Runtime:
     # the Mahalanobis map of raw encoded features: e = whiten_scaled[j] @ z - whiten_offset[j]
     whiten_scaled: np.ndarray  # (c, 7, 7) whiten / the scaler's scale_
     whiten_offset: np.ndarray  # (c, 7) whiten @ (mean_ / scale_ + cluster mean)
+    # e = [whiten_scaled[j], -whiten_offset[j]] @ (z, 1): one product a rollout step
+    mahalanobis: np.ndarray  # (c, 7, 8)
 
 
 def build_runtime(model: ContextualModel, settings: ContextualSettings) -> Runtime:
@@ -425,6 +183,10 @@ def build_runtime(model: ContextualModel, settings: ContextualSettings) -> Runti
         for j in range(model.n_clusters)
     )
     scaler = model.scaler
+    whiten_scaled = whiten / scaler.scale_[None, None, :]
+    whiten_offset = np.einsum(
+        "cij,cj->ci", whiten, scaler.mean_ / scaler.scale_ + model.cluster_means
+    )
     return Runtime(
         model=model,
         recogniser=Recogniser(model.sogp),
@@ -432,10 +194,9 @@ def build_runtime(model: ContextualModel, settings: ContextualSettings) -> Runti
         whiten=whiten,
         row={int(c): j for j, c in enumerate(model.cluster_ids)},
         names=model.cluster_names(),
-        whiten_scaled=whiten / scaler.scale_[None, None, :],
-        whiten_offset=np.einsum(
-            "cij,cj->ci", whiten, scaler.mean_ / scaler.scale_ + model.cluster_means
-        ),
+        whiten_scaled=whiten_scaled,
+        whiten_offset=whiten_offset,
+        mahalanobis=np.concatenate((whiten_scaled, -whiten_offset[:, :, None]), axis=2),
     )
 
 
@@ -458,6 +219,19 @@ def _clip1(value: float) -> float:
     return -1.0 if value < -1.0 else (1.0 if value > 1.0 else value)
 
 
+def _target_geometry(component: Any) -> tuple[np.ndarray | None, float, float]:
+    """How the rollout sees ``component``'s target: an object's or wall's surface points
+    (p, 2) [m], robot frame, whose nearest to the rolled-out pose is the target, else
+    None and the fixed target point ``(s0x, s0y)`` [m]."""
+    kind = getattr(component, "kind", "")
+    pts = np.asarray(getattr(component, "points", np.zeros((0, 2))), dtype=float).reshape(-1, 2)
+    points = pts if kind in ("object", "wall") and len(pts) else None
+    if points is None:
+        s0 = np.asarray(component.target_point(), dtype=float)
+        return None, float(s0[0]), float(s0[1])
+    return points, 0.0, 0.0
+
+
 def rollout(
     runtime: Runtime,
     cluster: int,
@@ -472,8 +246,7 @@ def rollout(
     runtime : Runtime
     cluster : int
         The recognised cluster id.
-    component : semantic component in the robot frame (``.kind``, ``.points``,
-        ``.target_point()``).
+    component : semantic component (``.kind``, ``.points``, ``.target_point()``), robot frame
     robot : RobotModel
         Limits that turn normalised ``u*`` into velocities.
     settings : ContextualSettings
@@ -481,36 +254,25 @@ def rollout(
     Returns
     -------
     path : numpy.ndarray
-        (k, 3) predicted poses (x [m], y [m], yaw [rad]) in the current robot frame,
-        ``k <= rollout_steps``.
+        (k, 3) predicted poses (x, y [m], yaw [rad]), robot frame, ``k <= rollout_steps``.
     distances : numpy.ndarray
         (k + 1,) or (k,) Mahalanobis distances (6.3) of every ``q_est`` computed (the last
         one above the threshold unless the cap ended the loop).
     """
     j = runtime.row[int(cluster)]
-    gmr = runtime.gmrs[j]
-    # e = W ((z - mean_) / scale_ - mu) = [W / scale_, -offset] (z, 1), one product a step
-    A = np.concatenate((runtime.whiten_scaled[j], -runtime.whiten_offset[j][:, None]), axis=1)
+    gmr, A = runtime.gmrs[j], runtime.mahalanobis[j]  # e = W ((z - mean_) / scale_ - mu)
     dot = np.dot
-    kind = getattr(component, "kind", "")
-    pts = np.asarray(getattr(component, "points", np.zeros((0, 2))), dtype=float).reshape(-1, 2)
-    points = pts if kind in ("object", "wall") and len(pts) else None
-    if points is None:
-        s0 = np.asarray(component.target_point(), dtype=float)
-        s0x, s0y = float(s0[0]), float(s0[1])
-    else:
+    points, s0x, s0y = _target_geometry(component)
+    if points is not None:
         d = np.empty_like(points)
         d2 = np.empty(len(points))
         here = np.empty(2)
     lim_v, lim_w = float(robot.max_speed), float(robot.max_yaw_rate)
-    dt = settings.dt
-    stop = settings.mahalanobis_stop
+    dt, stop, every = settings.dt, settings.mahalanobis_stop, settings.gmr_every
     cos, sin, atan2, hypot, sqrt = math.cos, math.sin, math.atan2, math.hypot, math.sqrt
     x = y = yaw = 0.0
-    path = []
-    dists = []
+    path, dists = [], []
     z = np.ones(8)  # (s*, |u| cos, |u| sin, u*, 1)
-    every = settings.gmr_every
     ux = uy = uw = 0.0
     for step in range(settings.rollout_steps):
         # Alg. 3, line 9: s* seen from the rolled-out pose
@@ -553,6 +315,22 @@ def rollout(
 
 
 # --------------------------------------------------------------------------- the mode
+
+
+def _nearest_candidates(components: Any, n: int) -> tuple[Any, np.ndarray, np.ndarray]:
+    """The ``n`` components whose target points are nearest the robot (Sec. 5.1, 6.1):
+    (the components, indexable; their target points (p, 2) [m]; the chosen indices,
+    nearest first, ties by order). All target points come in one call where the
+    sequence offers it (``sim.semantics.RobotFrameComponents``)."""
+    many = getattr(components, "target_points", None)
+    if callable(many):
+        targets = np.asarray(many(), dtype=float).reshape(-1, 2)
+    else:
+        components = tuple(components)
+        targets = np.array([np.asarray(c.target_point(), dtype=float) for c in components])
+    order = np.argsort(np.einsum("ij,ij->i", targets, targets), kind="stable")
+    return components, targets, order[:n]
+
 
 _RUNTIMES: dict[tuple, Runtime] = {}
 
@@ -631,6 +409,21 @@ class ContextualTaskMode:
             },
         )
 
+    def _safe(
+        self, v: np.ndarray, u: np.ndarray, beta: float, points: np.ndarray
+    ) -> tuple[np.ndarray, float]:
+        """The safety layer on the blended command ``v`` (3,); the mode yields (``v`` the
+        user's safe command, ``beta`` 0) when ``v`` is scaled below ``yield_below_scale``
+        and the user's own command ``u`` (3,) is freer. ``points`` (m, 2) [m]."""
+        s, robot = self.settings, self.robot_
+        v, scale = safe_command(v, points, robot, horizon_s=s.safety_horizon_s)
+        if beta > 0.0 and scale < s.yield_below_scale:
+            # blocked assistance must not hold the robot against the user's will
+            v_user, scale_user = safe_command(u, points, robot, horizon_s=s.safety_horizon_s)
+            if scale_user > scale:
+                v, beta = v_user, 0.0
+        return v, beta
+
     def step(self, obs: Any, u: np.ndarray) -> Assist:
         """One tick (see the module docstring).
 
@@ -653,16 +446,8 @@ class ContextualTaskMode:
         if rt is None or not len(components) or math.hypot(u_norm[0], u_norm[1]) < s.min_input:
             return self._manual(u, points, start, time.perf_counter())
 
-        # 1. candidates: the nearest components by target point (all target points in one
-        # call where the sequence offers it: sim.semantics.RobotFrameComponents)
-        many = getattr(components, "target_points", None)
-        if callable(many):
-            targets = np.asarray(many(), dtype=float).reshape(-1, 2)
-        else:
-            components = tuple(components)
-            targets = np.array([np.asarray(c.target_point(), dtype=float) for c in components])
-        order = np.argsort(np.einsum("ij,ij->i", targets, targets), kind="stable")
-        chosen = order[: s.candidates]
+        # 1. candidates: the nearest components by target point
+        components, targets, chosen = _nearest_candidates(components, s.candidates)
         # 2. q* per candidate, encoded and standardised
         q = task_features(targets[chosen], u_norm)
         Z = rt.model.scaler.transform(encode(q))
@@ -689,12 +474,7 @@ class ContextualTaskMode:
         # 6. blend (3.2) and the safety layer
         v = blend(u, g, beta)  # Eq. (3.2)
         t_track = time.perf_counter()
-        v, scale = safe_command(v, points, robot, horizon_s=s.safety_horizon_s)
-        if beta > 0.0 and scale < s.yield_below_scale:
-            # blocked assistance must not hold the robot against the user's will
-            v_user, scale_user = safe_command(u, points, robot, horizon_s=s.safety_horizon_s)
-            if scale_user > scale:
-                v, beta = v_user, 0.0
+        v, beta = self._safe(v, u, beta, points)
         end = time.perf_counter()
         best = mean.max(axis=1)
         scores = {str(components[int(k)].id): float(best[n]) for n, k in enumerate(chosen)}

@@ -2,41 +2,14 @@
 Avoidance (thesis Ch. 3.2.1.1, eq. 3.8; Fox, Burgard and Thrun 1997, adapted to a
 holonomic base).
 
-Every tick the dynamic window is the box of twists ``(v_x, v_y, omega)`` reachable
-from the current velocity estimate within one control tick under the
-acceleration limits, intersected with the velocity limits (translational speed
-at most ``max_speed``). The DWA evaluates a grid of twists in that window, plus
-the window's point nearest the user's command ``u`` and its point nearest
-standstill, each held constant (closed-form arcs, :func:`autonomy.safety.arc_poses`):
-
-1. Score every twist (all twists x poses x laser points in one vectorised pass)::
-
-       J = w_a (1 - ||v - u||_n) + w_c min(clearance, c_cap) / c_cap
-
-   ``||v - u||_n`` in [0, 1] is the distance to the user's command with each
-   channel normalised by twice its limit. It is smallest for the twist with the
-   user's heading *and* speed *and* turn rate, so it carries the heading and
-   velocity terms of Fox's objective; the clearance term (the footprint's smallest
-   clearance along the horizon, capped) pushes away from obstacles. The scores see
-   the poses every ``score_step_s`` and one laser point per ``score_cell_m`` square:
-   they only rank the twists.
-2. Check the twists for collision in the order of their scores, in batches of
-   doubling size, with every laser point and poses every ``step_s``, exactly in continuous
-   time (:func:`autonomy.safety.interval_clearance`); the first twist whose
-   footprint stays out of its protective field for ``horizon_s`` -- and for as
-   long as braking from it to a stop takes, Fox's admissibility -- is the answer.
-
-In free space the result is exactly the window's point nearest ``u``, i.e. ``u``
-itself whenever it is reachable: the user's heading preference is kept and only
-changed where obstacles demand it (spec section 2).
-
-Decisions where the spec is silent: the window is a box (per-axis acceleration
-limit ``max_accel``), as a holonomic base with independent axes allows; when no
-sampled twist is admissible the DWA commands standstill (zero), as in Fox et al.;
-inside the protective field already, a twist may not lose more than
-``tolerance_m`` of clearance (see :mod:`autonomy.safety`). A time-to-collision
-term (Fox's "dist") was tried and left out: in doorway approaches it made the
-DWA slow down in front of the frame instead of steering through the opening.
+Every tick the dynamic window is the box of twists ``(v_x, v_y, omega)`` reachable from
+the current velocity estimate within one control tick under the acceleration limits,
+intersected with the velocity limits. A grid of twists in the window, plus its points
+nearest the user's command ``u`` and nearest standstill, each held constant (closed-form
+arcs), are scored (see :func:`dwa`) and then checked for collision in score order; the
+first admissible one is the answer. In free space that is the window's point nearest
+``u``, i.e. ``u`` itself whenever it is reachable (spec section 2). Choices where the
+thesis is silent: docs/decisions.md.
 """
 
 from __future__ import annotations
@@ -153,6 +126,41 @@ def thin_points(points: np.ndarray, cell: float) -> np.ndarray:
     return points[np.sort(first)]
 
 
+def _scores(
+    samples: np.ndarray,
+    speed: np.ndarray,
+    u: np.ndarray,
+    points: np.ndarray,
+    sq: np.ndarray,
+    robot: RobotModel,
+    st: DWASettings,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Scores of the twists ``samples`` (n, 3) and their poses (n, n_look, 3) every
+    ``score_step_s`` along the horizon::
+
+        J = w_a (1 - ||v - u||_n) + w_c min(clearance, c_cap) / c_cap
+
+    ``||v - u||_n`` in [0, 1] is the distance to the user's command with each channel
+    normalised by twice its limit: smallest for the twist with the user's heading, speed
+    and turn rate, so it carries the heading and velocity terms of Fox's objective; the
+    clearance term (the footprint's smallest clearance along the horizon, capped) pushes
+    away from obstacles. The scores see one laser point per ``score_cell_m`` square
+    (``points`` (m, 2) [m], ``sq`` their squared norms): they only rank the twists."""
+    n = len(samples)
+    n_look = max(1, math.ceil(st.horizon_s / st.score_step_s - 1e-9))
+    look = arc_poses(samples, st.score_step_s * np.arange(1, n_look + 1))
+    cap = st.clearance_cap_m
+    reach = speed.max() * st.score_step_s * n_look + inflated_radius(
+        robot, max(robot.protective_margin, cap)
+    )
+    coarse = thin_points(points[sq <= reach * reach], st.score_cell_m)
+    h_look = footprint_clearance(look.reshape(-1, 3), coarse, robot).reshape(n, n_look)
+    scale = np.array([2 * robot.max_speed, 2 * robot.max_speed, 2 * robot.max_yaw_rate])
+    agreement = 1 - np.linalg.norm((samples - u) / scale, axis=1) / math.sqrt(3)
+    clearance = np.clip(h_look.min(axis=1), 0.0, cap) / cap
+    return st.weight_agreement * agreement + st.weight_clearance * clearance, look
+
+
 def dwa(
     u: np.ndarray,
     points: np.ndarray,
@@ -162,6 +170,12 @@ def dwa(
     settings: DWASettings | None = None,
 ) -> DWAResult:
     """Best admissible twist near the user's command ``u`` (eq. 3.8, ``g = DWA(u, z)``).
+
+    The twists are scored (:func:`_scores`), then checked for collision in score order,
+    in batches of doubling size, with every laser point and poses every ``step_s``,
+    exactly in continuous time (:func:`autonomy.safety.interval_clearance`); the first
+    twist whose footprint stays out of its protective field for ``horizon_s`` -- and for
+    as long as braking from it to a stop takes, Fox's admissibility -- is the answer.
 
     Parameters
     ----------
@@ -194,18 +208,7 @@ def dwa(
     c0 = float(footprint_clearance(np.zeros((1, 3)), check, robot)[0])
     required = required_clearance(c0, robot, st.tolerance_m)
 
-    # scores: agreement with u, and clearance along the horizon on a thinned cloud at
-    # a few poses (the scores only rank the twists; the collision check is exact)
-    n_look = max(1, math.ceil(st.horizon_s / st.score_step_s - 1e-9))
-    look = arc_poses(samples, st.score_step_s * np.arange(1, n_look + 1))
-    cap = st.clearance_cap_m
-    reach = speed.max() * st.score_step_s * n_look + inflated_radius(robot, max(margin, cap))
-    coarse = thin_points(points[sq <= reach * reach], st.score_cell_m)
-    h_look = footprint_clearance(look.reshape(-1, 3), coarse, robot).reshape(n, n_look)
-    scale = np.array([2 * robot.max_speed, 2 * robot.max_speed, 2 * robot.max_yaw_rate])
-    agreement = 1 - np.linalg.norm((samples - u) / scale, axis=1) / math.sqrt(3)
-    clearance = np.clip(h_look.min(axis=1), 0.0, cap) / cap
-    score = st.weight_agreement * agreement + st.weight_clearance * clearance
+    score, look = _scores(samples, speed, u, points, sq, robot, st)
 
     # exact admissibility, best-scored twists first, a batch at a time
     rate = sweep_rate(samples, radius, st.step_s)

@@ -9,27 +9,7 @@ angle ``theta`` between the translational input ``u_xy = (v_x, v_y)`` and the ve
 x axis points at the target -- so that +-pi are neighbours (issue 3) and the encoding is
 continuous, with the defined value ``(0, 0)`` when there is no translational input; every
 column is then standardised with a :class:`FeatureScaler` learnt on the training data.
-
-Decisions where the thesis is silent:
-
-- ``theta`` is signed, the direction of ``u_xy`` measured counter-clockwise *from* the
-  direction of ``r_s``: ``theta = wrap(atan2(v_y, v_x) - atan2(s_y, s_x))`` in (-pi, pi].
-  Driving straight at the target gives 0, sliding with the target on the robot's right
-  (input pointing to the left of the target) gives +pi/2, driving away gives pi.
-- When the translational input is (almost) zero (``|u_xy| < min_speed``, default 1e-6 in
-  the normalised units, i.e. only a pure rotation or no input) there is no input
-  direction, and ``theta`` is defined as 0 ("not pointing away from the target"); likewise
-  when the robot centre sits on the target (``|s| < min_distance``). The velocities in
-  ``q`` still tell the learner that the robot is not translating.
-- Encoding (:func:`encode`): ``(cos theta, sin theta)`` alone would jump between
-  arbitrary directions as ``|u_xy|`` passes through zero (and take the made-up value
-  ``(1, 0)`` at zero). Scaled by ``|u_xy|`` (normalised units) the pair is the input's
-  component towards the target and across it: continuous in ``u``, ``(0, 0)`` for no
-  translational input, whatever ``theta`` was set to. The contextual mode does not assist
-  at (near) zero input anyway (``autonomy.contextual``), and the demonstrations keep only
-  moving ticks.
-- The scaler divides by the population standard deviation (ddof 0); a column that is
-  constant in the training data keeps scale 1 so that it is centred but never blown up.
+Choices where the thesis is silent: docs/decisions.md.
 """
 
 from __future__ import annotations

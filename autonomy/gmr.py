@@ -6,38 +6,8 @@ GMR conditions a joint Gaussian mixture over ``(x, y)`` on the input ``x``
 (4.8). The fast online GMR (Alg. 1/2, Sec. 6.2.3) builds that mixture on demand: the ``k``
 demonstration points nearest to the query input (thesis: FANN; here an exact
 ``scipy.spatial.cKDTree``), a 2-component GMM with diagonal covariances fitted to them by
-EM (thesis footnote 4 of Ch. 4: diagonal to keep it cheap), then GMR.
-
-Decisions where the thesis is silent:
-
-- :func:`gmr` returns the moment-matched single Gaussian of the conditional mixture: the
-  mean ``sum_c h_c mu_c|x`` and the covariance
-  ``sum_c h_c (Sigma_c|x + mu_c|x mu_c|x^T) - mean mean^T``. Responsibilities are
-  computed in log space, so a query far from every component still gets a finite,
-  normalised answer (the nearest component in the Mahalanobis sense dominates).
-- With diagonal covariances the within-component cross-covariance is zero, so each
-  component predicts its own output mean; the regression comes from the responsibilities
-  varying with ``x``. This is the thesis's choice (cheap, local); :func:`gmr` itself accepts
-  full covariances.
-- :func:`em_diagonal` seeds the means k-means++ style (first centre uniformly at random,
-  the next with probability proportional to the squared distance to the nearest centre),
-  starts every variance at the data's variance plus the floor, adds the floor to every
-  variance at each M step (as scikit-learn's ``reg_covar``), and stops after ``iters``
-  iterations or when the mean log-likelihood per point improves by less than ``tol``
-  (default 1e-3, scikit-learn's ``GaussianMixture`` default; on 10 points this is a
-  handful of iterations, which keeps one prediction at a few hundred microseconds). It fits
-  ``min(n_components, number of distinct points)`` components, so one point, or ``k``
-  copies of one point, give a single component (variance = the floor) instead of failing.
-- The variance floor is *relative to the data's scale*: ``reg * scale`` per column, with
-  ``scale`` the column variance (:func:`data_scale`; for :class:`FastOnlineGMR` that of
-  the whole cluster, so that ten near-identical neighbours cannot collapse a component),
-  and ``reg = 1e-3`` (a floor of 3 % of a column's standard deviation). An absolute floor
-  (1e-6 before) meant different models in metres and in millimetres, and a vanishing
-  floor for columns that repeat in the neighbours (held stick values). The result is
-  equivariant to rescaling a column (tested).
-- :class:`FastOnlineGMR` uses ``min(k, N)`` neighbours; the k-d tree distance is Euclidean
-  in the input columns as given, so the caller chooses their units (metres for the
-  target point ``s*`` of Alg. 3).
+EM (thesis footnote 4 of Ch. 4: diagonal to keep it cheap), then GMR. Choices where the
+thesis is silent: docs/decisions.md.
 """
 
 from __future__ import annotations

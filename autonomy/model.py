@@ -1,45 +1,18 @@
 """The contextual-task model file: everything the ``contextual_task`` mode needs, in one
 ``.npz`` (thesis Ch. 5-6, Sec. 7.4; spec sections 3-4; issue 3).
 
-A trained model (:class:`ContextualModel`) holds
-
-- the :class:`~autonomy.features.FeatureScaler` of the encoded task features (7 columns,
-  ``autonomy.features.ENCODED_NAMES``);
-- the DP-GMM motion clusters kept after training (Sec. 6.2.1): their means and full
-  covariances in the *standardised encoded* feature space, used by the Mahalanobis stop of
-  the rollout (Eq. 6.3, Alg. 3);
-- per cluster the demonstration points of the fast online GMR (Alg. 2, Sec. 6.2.3):
-  input the target point ``s*`` [m] (robot frame), output the user command ``u*`` in the
-  normalised (-1, 1) units of Sec. 5.1;
-- the one-vs-all :class:`~autonomy.sogp_classifier.SOGPClassifier` over the clusters
-  (Ch. 5), inputs the standardised encoded features;
-- metadata: format and platform version, creation date, SHA-256 of the training data,
-  the settings and a cluster summary.
+A :class:`ContextualModel` holds the feature scaler (7 encoded columns); the DP-GMM
+motion clusters' means and covariances in the standardised encoded space (the
+Mahalanobis stop, Eq. 6.3, Alg. 3; Sec. 6.2.1); per cluster the fast online GMR's
+demonstration points (Alg. 2: ``s*`` [m] -> ``u*`` normalised, Sec. 5.1, 6.2.3); the
+one-vs-all SOGP classifier over the clusters (Ch. 5); and metadata (versions, creation
+date, SHA-256 of the training data, settings, cluster summary).
 
 File layout (``numpy.savez``, loaded with ``allow_pickle=False``): the entry
 ``metadata`` is a JSON string (a 0-d unicode array); every other entry is a plain numeric
 array named in :data:`ARRAYS` or, for the classifier, ``sogp.<field>`` and
-``sogp.<j>.<field>`` for the GP of the j-th cluster.
-
-Decisions where the spec is silent:
-
-- Size. A GP at capacity 500 carries two dense 500 x 500 matrices, the covariance
-  correction ``C`` and the inverse Gram matrix ``Q`` (4 MB per cluster as float64). Only
-  ``C`` enters a prediction (Eq. 5.9), and it is symmetric: it is stored as its upper
-  triangle (``sogp.<j>.C_upper``, exact). ``Q`` is a function of the basis vectors and the
-  kernel alone and is only needed to keep learning online; it is *not* stored but
-  recomputed on load as the inverse of the basis' Gram matrix by Cholesky with the SOGP's
-  own reconditioning jitter (``1e-10 * signal_var``, raised tenfold until it factors).
-  Predictions of a loaded model therefore equal the saved model's exactly; ``Q`` equals
-  the trained one to rounding.
-- Archives are written with fixed zip timestamps and entries in sorted order, so the
-  same model gives the same bytes except for the creation date in the metadata.
-- Validation on load: not a zip/npz, a missing entry, a wrong shape or non-finite
-  values, unreadable metadata, or a format version other than :data:`FORMAT_VERSION` all
-  raise ``ValueError`` naming the file and the field. Version 1 files encoded the angle
-  as plain ``(cos, sin)`` (``autonomy.features.encode`` now scales it by ``|u_xy|``), so
-  their scaler and GPs would be fed features from another space: they are refused with
-  a request to retrain rather than silently misread.
+``sogp.<j>.<field>`` for the GP of the j-th cluster. Choices where the thesis is
+silent: docs/decisions.md.
 """
 
 from __future__ import annotations
@@ -56,7 +29,7 @@ import numpy as np
 from scipy.linalg import LinAlgError, cho_factor, cho_solve
 
 from autonomy.features import ENCODED_NAMES, FeatureScaler
-from autonomy.sogp import se_ard_kernel
+from autonomy.gp_kernel import se_ard_kernel
 from autonomy.sogp_classifier import SOGPClassifier
 
 FORMAT_VERSION = 2  # 2: angle encoded as |u_xy| (cos, sin); capacity 250
@@ -223,8 +196,8 @@ def load_model(path: str | Path | None = None) -> ContextualModel:
     path = Path(DEFAULT_MODEL if path is None else path)
     if not path.is_file():
         raise ValueError(
-            f"{path}: model file not found (train one with `asa train --demonstrations DIR "
-            f"--out MODEL`; see autonomy/models/README.md)"
+            f"{path}: model file not found (train one with `asa train`; see "
+            f"autonomy/models/README.md)"
         )
     try:
         with np.load(path, allow_pickle=False) as data:

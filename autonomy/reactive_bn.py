@@ -1,62 +1,14 @@
 """Reactive shared autonomy by situation recognition with a Bayesian network
 (thesis Ch. 3.2, eqs. 3.5-3.21; evaluated in 7.5; spec section 2).
 
-Three situations, one assistive action each (situated-action paradigm):
-
-- FT, Free Travel: ``g = u`` (3.5);
-- OA, Object Approach: ``g = alpha u``, ``alpha = exp(-1 / (d - d_safe))`` if
-  ``d > d_safe`` else 0 (3.6, 3.7);
-- GOA, General Obstacle Avoidance: ``g = DWA(u, z)`` (3.8, :mod:`autonomy.dwa`).
-
-Environment model (3.12-3.14): a local occupancy grid centred on the robot,
-rebuilt from the current laser scans every tick with the inverse range-sensor
-model of occupancy-grid mapping (Thrun, Burgard and Fox, *Probabilistic
-Robotics*, Table 9.2): for each scanner, a cell is Free when the beam nearest
-to it in bearing passes beyond it (its range exceeds the cell's distance by
-half a cell), Occupied when a laser hit falls in it, and Unknown otherwise
-(shadowed, or outside every scanner's field of view). The security zone is the
-set of cells whose centres lie within ``zone_radius`` of the robot's centre
-and outside its footprint; it is split into ``360 / sector_deg`` sectors by the
-bearing of the cell centre, sector ``j`` covering
-``[-pi + j w, -pi + (j + 1) w)``. Per sector
-``p(s_j = Occ) = (occupied + unknown cells) / cells`` (3.13), and
-``p(S = Occ) = max_j p(s_j = Occ)`` (3.14).
-
-User input model (3.15-3.18): the input direction ``theta_u = atan2(v_y, v_x)``
-is normal with standard deviation ``sigma``, wrapped on the circle (three
-windings, renormalised: the factor epsilon of 3.15); ``p(u in s_j)`` is its
-mass over the sector's angles (3.16).
-
-Posteriors (3.19-3.21) normalised over the three situations; the MAP situation
-gives ``g`` and ``beta`` is its posterior (3.10, 3.11); ``v`` by eq. (3.2).
-
-Decisions where the thesis is silent (documented choices):
-
-- Values: ``sector_deg = 5`` (thesis); ``zone_radius = 1.0`` m from the robot's
-  centre (about 0.7 m beyond the 0.6 x 0.5 m footprint: the clearance band the
-  thesis's Fig. 7.44 shows drivers using in doorways, 0.4-0.7 m);
-  ``grid_resolution = 0.05`` m (the thesis's map resolution);
-  ``sigma_deg = 10`` (joystick direction noise); ``d_safe = 0.15`` m (the
-  clearance of the thesis's doorways beyond the protective field).
-- ``d`` is the distance the footprint can translate along the input direction
-  before touching a laser point (the footprint swept along ``u``'s direction:
-  the "driving direction" is that corridor), capped at the sensors' maximum
-  range when nothing lies in the corridor. Only the translational direction
-  counts; ``alpha`` scales all three channels of ``u`` as (3.6) writes.
-- A pure rotation (translational input below ``min_translation``) has no
-  direction and cannot point into a sector: it is passed through as Free
-  Travel with ``g = u``, posteriors (FT, OA, GOA) = (1, 0, 0) and ``beta = 0``
-  (the user keeps full authority; nothing was recognised). ``d`` is NaN then.
-- No safety layer: the thesis's reactive condition (7.6.1.2) had none; its
-  protection is OA and GOA themselves.
-- Reactive: :meth:`ReactiveBNMode.step` keeps no state between ticks; only the
-  zone's geometry is derived in :meth:`~ReactiveBNMode.reset`.
-- Per-tick cost: which beam of a scanner is nearest each zone cell, whether the cell
-  is in its field of view and how far it is depend only on the scanner's mount and
-  beam angles, so :func:`cell_states` derives them once per scanner and keeps them on
-  the :class:`SectorGrid` (keyed by the exact bytes of origin and angles: a scanner
-  with other beams gets its own entry). This is a cache, not state: the outputs are
-  the same as recomputing them every tick.
+Three situations, one assistive action each (situated-action paradigm): FT, Free Travel,
+``g = u`` (3.5); OA, Object Approach, ``g = alpha u`` with ``alpha = exp(-1 / (d -
+d_safe))`` if ``d > d_safe`` else 0 (3.6, 3.7); GOA, General Obstacle Avoidance,
+``g = DWA(u, z)`` (3.8, :mod:`autonomy.dwa`). The environment model is a local occupancy
+grid split into sectors (3.12-3.14, :func:`cell_states`); the user input model a wrapped
+normal over the input direction (3.15-3.18); the posteriors (3.19-3.21) are normalised
+over the situations, the MAP situation gives ``g`` and ``beta`` is its posterior (3.10,
+3.11); ``v`` by eq. (3.2). Choices where the thesis is silent: docs/decisions.md.
 """
 
 from __future__ import annotations
@@ -82,7 +34,7 @@ _WINDINGS = (2 * math.pi * np.array([-1.0, 0.0, 1.0]))[:, None]  # shifts of the
 
 @dataclass(frozen=True, slots=True)
 class ReactiveSettings:
-    """Settings of the reactive mode (values: see the module docstring)."""
+    """Settings of the reactive mode (choices: docs/decisions.md)."""
 
     sector_deg: float = 5.0  # [deg] angular width of a sector (thesis: 5)
     zone_radius: float = 1.0  # [m] security zone around the robot's centre
@@ -139,6 +91,9 @@ def sector_grid(
 ) -> SectorGrid:
     """Cells of the security zone (within ``zone_radius`` [m] of the centre, outside
     the footprint) and their 5-degree sectors; geometry only, built once per robot.
+
+    A cell belongs to sector ``j`` when the bearing of its centre lies in
+    ``[-pi + j w, -pi + (j + 1) w)``, ``w = sector_deg`` (Sec. 3.2, Eqs. 3.12-3.14).
 
     Raises
     ------
@@ -219,7 +174,13 @@ def _scan_geometry(
 
 
 def cell_states(scans: Any, grid: SectorGrid) -> np.ndarray:
-    """State of every zone cell from the current scans (inverse range-sensor model).
+    """State of every zone cell from the current scans (inverse range-sensor model of
+    occupancy-grid mapping: Thrun, Burgard and Fox, *Probabilistic Robotics*, Table 9.2).
+
+    For each scanner a cell is Free when the beam nearest to it in bearing passes beyond
+    it (its range exceeds the cell's distance by half a cell), Occupied when a laser hit
+    falls in it, and Unknown otherwise (shadowed, or outside every scanner's field of
+    view). The grid is rebuilt from the current scans every tick (Eq. 3.12).
 
     Parameters
     ----------
@@ -269,7 +230,9 @@ def sector_occupancy(scans: Any, grid: SectorGrid) -> np.ndarray:
 
 
 def input_sector_probabilities(theta_u: float, sigma: float, edges: np.ndarray) -> np.ndarray:
-    """``p(u in s_j)``: mass of the wrapped normal ``N(theta_u, sigma^2)`` over each sector.
+    """``p(u in s_j)``: mass of the wrapped normal ``N(theta_u, sigma^2)`` over each sector
+    (Eqs. 3.15, 3.16; ``theta_u = atan2(v_y, v_x)``, three windings, renormalised: the
+    factor epsilon of 3.15).
 
     Parameters
     ----------

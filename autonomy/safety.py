@@ -1,47 +1,14 @@
-"""The safety layer and the footprint-versus-laser-points geometry it shares with the DWA.
+"""The safety layer and the footprint-versus-laser-points geometry it shares with the DWA
+(spec section 4; thesis 7.6.1.2 and footnote 31).
 
-Safety layer (spec section 4, thesis 7.6.1.2 and footnote 31): every command sent
-to the robot is checked for collision along its direction "with the dynamic
-window concept" -- the robot's footprint is forward-simulated against the current
-laser points -- and scaled down until it is collision-free. The thesis adds it to
-the contextual mode for ticks where the recognition confidence is low.
-
-Geometry used here and in :mod:`autonomy.dwa` and :mod:`autonomy.reactive_bn`:
-
-- A constant body twist ``(v_x, v_y, omega)`` moves the robot along a circular
-  arc; :func:`arc_poses` gives the poses in closed form (no integration error).
-- :func:`footprint_clearance`: for a pose, ``h = min_points max_edges (n_e . q - c_e)``
-  with ``q`` the point in the robot frame at that pose: the signed distance of the
-  nearest point to the footprint's edge lines. ``h <= c`` means some point lies in
-  the footprint inflated by ``c`` with square corners (``h`` never exceeds the
-  Euclidean distance, so ``h >= c`` is a conservative clearance test).
-- Between checked poses the clearance cannot drop faster than the speed of the
-  fastest footprint point, so two checks ``h_a``, ``h_b`` a time ``dt`` apart bound
-  the clearance on the whole interval from below by ``(h_a + h_b - L dt) / 2``
-  (:func:`interval_clearance`, ``L`` from :func:`sweep_rate`). The collision tests are
-  therefore exact in continuous time, not only at the sampled poses.
-- :func:`translation_distance`: how far the footprint can translate along a
-  direction before touching a point (ray casting, Cyrus-Beck clipping).
-
-Decisions where the spec is silent:
-
-- "Collision-free" means the footprint inflated by the robot's protective margin
-  ``m`` touches no laser point over the horizon. If the robot is already inside
-  its protective field (clearance ``c0 < m``), the command may not bring it closer
-  than ``c0 - tolerance_m`` (``tolerance_m`` absorbs laser noise), so the robot
-  can always slide along or back away from an obstacle instead of freezing.
-- The braking distance under ``max_accel`` (and ``max_yaw_accel``) is allowed for
-  by extending the checked horizon to ``dt + |v| / (2 a)`` when that is longer:
-  braking proportionally in all channels follows a prefix of the same arc.
-- The largest safe scale is found exactly rather than by bisection: scaling the
-  command by ``s`` visits a prefix of the unscaled command's arc, of length
-  ``s * T(s)`` in the unscaled command's time, so one forward simulation of the
-  unscaled command gives the first unsafe time and the scale follows in closed form.
-
-Per-tick cost: the inflated radii are remembered per robot and margin
-(:func:`inflated_radius`), and :func:`arc_poses` and :func:`translation_distance` avoid
-numpy's per-call overheads while doing the same floating-point operations, so their
-results are bit-for-bit those of the plain expressions (``tests/test_mode_equivalence.py``).
+Every command sent to the robot is checked for collision along its direction "with the
+dynamic window concept" -- the footprint forward-simulated against the current laser
+points -- and scaled down until it is collision-free; the thesis adds it to the
+contextual mode for ticks where the recognition confidence is low. The geometry
+(:func:`arc_poses`, :func:`footprint_clearance`, :func:`interval_clearance`,
+:func:`translation_distance`) is also used by :mod:`autonomy.dwa` and
+:mod:`autonomy.reactive_bn`; with it the collision tests are exact in continuous time,
+not only at the sampled poses. Choices where the thesis is silent: docs/decisions.md.
 """
 
 from __future__ import annotations

@@ -1,99 +1,11 @@
-"""Sparse Online Gaussian Process regression (Csató & Opper 2002; thesis Sec. 5.2, 7.3).
+"""Sparse Online Gaussian Process regression (Csató & Opper 2002, "Sparse on-line Gaussian
+processes", Neural Computation 14(3), Sec. 3-4, "C&O" below; thesis Sec. 5.2, 7.3).
 
 The posterior of a zero-mean GP with squared-exponential ARD kernel and Gaussian noise
-(thesis eqs. 5.4-5.7, 5.9) is kept in Csató & Opper's parametrisation over a set of at
-most ``capacity`` basis vectors (BVs)::
-
-    mean(x)  = k_x^T alpha                            # Eq. (5.6)
-    var(x)   = k(x, x) + k_x^T C k_x + noise_var      # Eq. (5.9)
-
-with ``k_x`` the kernel between the BVs and ``x`` and ``Q`` the inverse Gram matrix of
-the BVs. One observation ``(x, y)`` is absorbed exactly (Gaussian likelihood) by the
-rank-one updates of Csató & Opper (2002), "Sparse on-line Gaussian processes", Neural
-Computation 14(3), Sec. 3-4 ("C&O" below):
-
-- ``q = (y - m_x) / (s2_x + noise_var)``, ``r = -1 / (s2_x + noise_var)`` with the current
-  predictive mean ``m_x`` and latent variance ``s2_x`` at ``x``;
-- projection ``e_hat = Q k_x`` and novelty ``gamma = k(x, x) - k_x^T e_hat``;
-- ``gamma < novelty_tol * k(x, x)``: reduced update without a new BV,
-  ``s = C k_x + e_hat`` (the tolerance is relative to the signal variance ``k(x, x)``, so it
-  does not depend on the targets' units);
-- otherwise the full update: ``s = (C k_x, 1)``, alpha, C and Q grow by one;
-- ``alpha += q s``, ``C += r s s^T``, ``Q += (e_hat, -1)(e_hat, -1)^T / gamma``;
-- above capacity, the BV with the smallest score ``alpha_i^2 / (Q_ii + C_ii)`` is deleted
-  with C&O's deletion equations (see :meth:`SparseOnlineGP._delete`).
-
-With capacity above the number of observations and every point novel, the result is the
-full GP posterior exactly (tested to 1e-6).
-
-Decisions where the thesis and the brief are silent:
-
-- The reduced update treats the *projected* observation exactly: the projected latent has
-  variance ``s2_x - gamma``, so ``q`` and ``r`` are scaled by ``eta = 1 / (1 + r gamma)``
-  (Csató's own reference implementation does the same; as ``gamma -> 0`` it is C&O's
-  update).
-- Numerics: ``C`` and ``Q`` are stored as the upper triangle of preallocated
-  Fortran-ordered arrays (grown by doubling up to ``capacity + 1``) and changed with BLAS
-  ``dsyr``/``dsyr2``/``dsymv`` in place, so an update at capacity 500 costs a few
-  O(b^2) level-2 calls and no inversion. A deleted BV's slot is refilled by the last BV,
-  keeping the storage compact. Every ``recondition_every`` updates ``Q`` is recomputed
-  from the BVs' Gram matrix by Cholesky with a jitter of ``1e-10 * signal_var`` (raised
-  tenfold until it factors) to stop rounding drift; ``alpha`` and ``C`` are left as they
-  are (they carry the data). The latent variance is clamped at 0, so the predictive
-  variance is never below ``noise_var``. Deletion scores use ``max(Q_ii + C_ii, tiny)``.
-- At capacity, the scores after a prospective addition are computed first, in O(b). When
-  the new point itself would be the one deleted, adding and deleting it is replaced by the
-  reduced update with ``eta = 1``, which C&O's equations make identical (the test checks
-  it against the verbatim equations); this skips two thirds of the O(b^2) work on most
-  updates once the basis is full.
-- Batch prediction caches the dense symmetric ``C`` and the BVs' norms until the next
-  update (one GEMM instead of BLAS ``symm``, which is slow on thin query blocks);
-  :meth:`SparseOnlineGP.predict_mean` skips the variance, all the score (5.8) needs.
-- All level-2 BLAS work here is memory-bound: a multi-threaded BLAS only slows it down,
-  badly so on a busy 2-core machine (measured 5-8x). Callers that run many updates
-  (training, the benchmark) should limit BLAS to one thread (``threadpoolctl``); this
-  module does not, as ``autonomy`` imports only numpy, scipy and scikit-learn.
-- :meth:`SparseOnlineGP.fit` resets the model and feeds the rows in the given order
-  (shuffling is the caller's choice, see the classifier).
-- :meth:`SparseOnlineGP.refine` (a decision beyond the thesis, used by the offline
-  evaluation) replaces the single pass's posterior by the one repeated passes converge
-  to on the chosen basis, in closed form (the projected process). On the demonstrations
-  it raised the classifier's F0.5 at capacity 600 by up to .05 (doorway crossing), for
-  a fraction of the online pass's cost (see ``autonomy.evaluation``).
-- :func:`fit_hyperparameters` maximises the full GP's log evidence (5.11) with L-BFGS-B on
-  ``log`` parameters from a heuristic start (length scale ``sqrt(d) * std`` per input
-  column, signal variance ``mean(y^2)``, noise ``0.1 mean(y^2)``) and ``restarts - 1``
-  random starts (log-normal jitter of scale 1 around it). Bounds: length scale in
-  ``[1e-2, max_length_scale] * std`` of its column (std 0 counts as 1;
-  ``max_length_scale`` = :data:`MAX_LENGTH_SCALE` = 0.5 by default), signal and noise
-  variance in ``[1e-2, 10] * v`` with ``v = mean(y^2)`` (1 if zero), so the
-  signal-to-noise ratio is at most 1e3.
-- Why the length scales are capped at half a standard deviation. The evidence of a
-  one-vs-all GP on the demonstrated targets' features keeps rising with the length scale
-  in most input columns (the classes are separable along a few of them), so with the old
-  cap of 100 std most GPs ignored the target point ``s``: every candidate then scored
-  alike and the demonstrated target won 5-20 % of the ticks. The recogniser needs a
-  feature *unlike* the demonstrations (a wrong candidate's) to score near the prior mean
-  0, which only short length scales give; the evidence never sees such features. Measured
-  on the 48-run demonstration set (``autonomy/models/README.md``; train on even runs, pick
-  rate on the odd ones, 10 nearest candidates, angle encoded as plain (cos, sin), capacity
-  250): cap 1.0 std 65 %, 0.5 std 75 %, 0.3 std 79 % (in-sample: 100 std 10 %, 3 std
-  28 %, 1 std 63 %, 0.5 std 83 %; the shipped model, with the speed-scaled encoding of
-  ``autonomy.features``, 82 %). The evidence
-  optimum lies on the cap in almost every column; 0.5 is chosen over 0.3 to keep some
-  generalisation to task types not demonstrated (thesis Sec. 7.4.2).
-- Near-duplicate inputs. Every full update adds ``e e^T / gamma`` to ``Q``; with the
-  novelty threshold at 1e-6 of the signal variance a near-duplicate BV made ``Q`` grow to
-  1e13 within a few hundred updates on the demonstrations, rounding then drove ``gamma``
-  negative and the model overflowed to NaN. The threshold is 1e-4 (``Q`` and the Gram
-  matrix's condition number stay bounded, C&O's "gamma test"), and a ``gamma`` that rounding
-  made negative -- impossible in exact arithmetic, it is a Schur complement -- triggers an
-  immediate re-conditioning of ``Q`` before the update is decided.
-- The noise floor matters: with +-1 labels of well-separated clusters the
-  evidence drives the noise towards zero (the labels are then a deterministic function of
-  the features), and such a near-noiseless posterior is poorly represented by a sparse
-  basis -- measured on a 3-cluster toy problem at capacity 60 of 450 points, training RMSE
-  0.4-0.7 with noise 1e-4 (signal 3.6) against 0.13-0.15 with noise 1e-2.
+(Eq. 5.4-5.7, 5.9) over at most ``capacity`` basis vectors, absorbing one observation at
+a time; with room for every point it is the full GP posterior. Hyperparameters:
+:mod:`autonomy.gp_hyperparameters`. Choices where the thesis is silent:
+docs/decisions.md.
 """
 
 from __future__ import annotations
@@ -101,8 +13,9 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from scipy.linalg import blas, cho_factor, cho_solve, lapack
-from scipy.optimize import minimize
+from scipy.linalg import blas, cho_solve
+
+from autonomy.gp_kernel import cholesky_with_jitter, se_ard_kernel
 
 _TINY = 1e-300
 _MIN_ALLOC = 16
@@ -111,38 +24,25 @@ MAX_LENGTH_SCALE = 0.5  # upper bound of a length scale, in standard deviations 
 NOVELTY_TOL = 1e-4  # relative to the signal variance; below it a point is projected
 
 
-def se_ard_kernel(
-    A: np.ndarray, B: np.ndarray, *, length_scales: np.ndarray, signal_var: float
-) -> np.ndarray:
-    """Squared-exponential kernel with one length scale per input dimension (Eq. 5.7).
-
-    ``k(a, b) = signal_var * exp(-0.5 * sum_j ((a_j - b_j) / l_j)^2)``
-
-    Parameters
-    ----------
-    A : numpy.ndarray
-        (n, d) inputs.
-    B : numpy.ndarray
-        (m, d) inputs.
-    length_scales : numpy.ndarray
-        (d,) length scales, in the inputs' units.
-    signal_var : float
-        Signal variance, in the squared output unit.
-
-    Returns
-    -------
-    numpy.ndarray
-        (n, m) kernel matrix.
-    """
-    ls = np.asarray(length_scales, dtype=float)
-    a = np.asarray(A, dtype=float) / ls
-    b = np.asarray(B, dtype=float) / ls
-    sq = (a * a).sum(1)[:, None] + (b * b).sum(1)[None, :] - 2.0 * (a @ b.T)
-    return signal_var * np.exp(-0.5 * np.maximum(sq, 0.0))  # Eq. (5.7), ARD
-
-
 class SparseOnlineGP:
     """Sparse Online GP regression with Gaussian noise (Csató & Opper 2002).
+
+    The posterior is kept in C&O's parametrisation over the basis vectors (BVs)::
+
+        mean(x)  = k_x^T alpha                            # Eq. (5.6)
+        var(x)   = k(x, x) + k_x^T C k_x + noise_var      # Eq. (5.9)
+
+    with ``k_x`` the kernel between the BVs and ``x`` and ``Q`` the inverse Gram matrix of
+    the BVs. One observation ``(x, y)`` is absorbed exactly by C&O's rank-one updates:
+    ``q = (y - m_x) / (s2_x + noise_var)``, ``r = -1 / (s2_x + noise_var)`` with the
+    predictive mean ``m_x`` and latent variance ``s2_x`` at ``x``; projection
+    ``e_hat = Q k_x`` and novelty ``gamma = k(x, x) - k_x^T e_hat``; when
+    ``gamma < novelty_tol * k(x, x)`` (relative to the signal variance, so independent of
+    the targets' units) the reduced update ``s = C k_x + e_hat`` without a new BV, else
+    the full update ``s = (C k_x, 1)`` (alpha, C and Q grow by one); then
+    ``alpha += q s``, ``C += r s s^T``, ``Q += (e_hat, -1)(e_hat, -1)^T / gamma``. Above
+    capacity the BV with the smallest score ``alpha_i^2 / (Q_ii + C_ii)`` is deleted
+    (:meth:`_delete`).
 
     Parameters
     ----------
@@ -426,7 +326,7 @@ class SparseOnlineGP:
         if b == 0:
             return
         K = self._gram() if K is None else K
-        factor = _cholesky_with_jitter(K, 1e-10 * self.signal_var)
+        factor = cholesky_with_jitter(K, 1e-10 * self.signal_var)
         if factor is None:  # pragma: no cover - a Gram matrix with jitter 1e2 * signal_var
             return
         Qb = cho_solve(factor, np.eye(b), check_finite=False)
@@ -503,7 +403,7 @@ class SparseOnlineGP:
             Knb = self._cross_kernel(Xs[block])
             M += Knb.T @ Knb
             rhs += Knb.T @ y[block]
-        factor = _cholesky_with_jitter(M, 1e-12 * float(np.trace(M)) / b)
+        factor = cholesky_with_jitter(M, 1e-12 * float(np.trace(M)) / b)
         if factor is None:  # pragma: no cover - M is a Gram matrix plus a ridge
             return self
         self._alpha[:b] = cho_solve(factor, rhs, check_finite=False)
@@ -670,18 +570,6 @@ def _alloc_size(b: int, capacity: int) -> int:
     return min(size, capacity + 1)
 
 
-def _cholesky_with_jitter(A: np.ndarray, jitter: float) -> tuple[np.ndarray, bool] | None:
-    """``cho_factor`` of ``A + jitter I``, the jitter raised tenfold (12 times at most)
-    until it factors; None if it never does."""
-    eye = np.eye(A.shape[0])
-    for _ in range(12):
-        try:
-            return cho_factor(A + jitter * eye, lower=False, check_finite=False)
-        except np.linalg.LinAlgError:
-            jitter *= 10.0
-    return None
-
-
 def _symmetric(U: np.ndarray, b: int) -> np.ndarray:
     """The (b, b) symmetric matrix whose upper triangle is stored in U."""
     up = np.triu(U[:b, :b])
@@ -694,171 +582,3 @@ def _sym_column(U: np.ndarray, i: int, b: int, out: np.ndarray) -> np.ndarray:
     out[i:b] = U[i, i:b]
     out[b:] = 0.0
     return out
-
-
-# ------------------------------------------------------------------ hyperparameters
-def log_evidence(log_params: np.ndarray, X: np.ndarray, y: np.ndarray) -> tuple[float, np.ndarray]:
-    """Log evidence of the full GP and its gradient (Eq. 5.11; Rasmussen & Williams 5.9).
-
-    ``log p(y | X) = -y^T A^-1 y / 2 - log|A| / 2 - n log(2 pi) / 2``, ``A = K + noise I``;
-    ``d/dtheta = tr((a a^T - A^-1) dA/dtheta) / 2`` with ``a = A^-1 y``.
-
-    Parameters
-    ----------
-    log_params : numpy.ndarray
-        (d + 2,) ``(log l_1, ..., log l_d, log signal_var, log noise_var)``.
-    X : numpy.ndarray
-        (n, d) inputs.
-    y : numpy.ndarray
-        (n,) targets.
-
-    Returns
-    -------
-    value : float
-        The log evidence (``-inf`` if ``A`` is not positive definite).
-    grad : numpy.ndarray
-        (d + 2,) its gradient with respect to ``log_params``.
-    """
-    X = np.asarray(X, dtype=float)
-    y = np.asarray(y, dtype=float)
-    n, d = X.shape
-    theta = np.asarray(log_params, dtype=float)
-    ls = np.exp(theta[:d])
-    sf2 = float(np.exp(theta[d]))
-    sn2 = float(np.exp(theta[d + 1]))
-    K = se_ard_kernel(X, X, length_scales=ls, signal_var=sf2)
-    A = K + sn2 * np.eye(n)
-    L, info = lapack.dpotrf(A, lower=1, clean=1)
-    if info != 0:
-        return -np.inf, np.zeros(d + 2)
-    a = cho_solve((L, True), y, check_finite=False)
-    logdet = 2.0 * np.log(np.diag(L)).sum()
-    value = -0.5 * float(y @ a) - 0.5 * logdet - 0.5 * n * np.log(2.0 * np.pi)  # Eq. (5.11)
-    Ainv, info = lapack.dpotri(L, lower=1)  # lower triangle of A^-1, from the factor
-    if info != 0:
-        return -np.inf, np.zeros(d + 2)
-    Ainv = np.tril(Ainv) + np.tril(Ainv, -1).T
-    W = np.outer(a, a) - Ainv
-    M = W * K
-    grad = np.empty(d + 2)
-    # dK/dlog l_j = K * (x_ij - x_kj)^2 / l_j^2; sum_ik M_ik (x_ij - x_kj)^2 expanded.
-    Xs = X / ls
-    rows = M.sum(axis=1)
-    grad[:d] = 0.5 * (2.0 * (rows @ (Xs * Xs)) - 2.0 * np.einsum("ij,ij->j", Xs, M @ Xs))
-    grad[d] = 0.5 * float(np.sum(M))  # dK/dlog sf2 = K
-    grad[d + 1] = 0.5 * sn2 * float(np.trace(W))  # dA/dlog sn2 = sn2 I
-    return value, grad
-
-
-def initial_log_params(X: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Heuristic start for :func:`fit_hyperparameters`, (d + 2,) log parameters."""
-    X = np.asarray(X, dtype=float)
-    std = _column_scale(X)
-    v = _target_scale(y)
-    return np.concatenate([np.log(std * np.sqrt(X.shape[1])), [np.log(v), np.log(0.1 * v)]])
-
-
-def hyperparameter_bounds(
-    X: np.ndarray, y: np.ndarray, *, max_length_scale: float = MAX_LENGTH_SCALE
-) -> list[tuple[float, float]]:
-    """Bounds on the log parameters used by :func:`fit_hyperparameters`.
-
-    Parameters
-    ----------
-    X : numpy.ndarray
-        (n, d) inputs.
-    y : numpy.ndarray
-        (n,) targets.
-    max_length_scale : float
-        Upper bound of every length scale, in standard deviations of its column (> 0.01).
-
-    Returns
-    -------
-    list of (float, float)
-        (d + 2,) ``(low, high)`` bounds of the log length scales, log signal variance and
-        log noise variance.
-    """
-    if not (np.isfinite(max_length_scale) and max_length_scale > 1e-2):
-        raise ValueError(f"max_length_scale: must be a number > 0.01, got {max_length_scale!r}")
-    std = _column_scale(np.asarray(X, dtype=float))
-    v = _target_scale(y)
-    bounds = [(float(np.log(1e-2 * s)), float(np.log(max_length_scale * s))) for s in std]
-    bounds.append((float(np.log(1e-2 * v)), float(np.log(1e1 * v))))
-    bounds.append((float(np.log(1e-2 * v)), float(np.log(1e1 * v))))
-    return bounds
-
-
-def _column_scale(X: np.ndarray) -> np.ndarray:
-    std = X.std(axis=0)
-    return np.where(std > 1e-12, std, 1.0)
-
-
-def _target_scale(y: np.ndarray) -> float:
-    v = float(np.mean(np.asarray(y, dtype=float) ** 2))
-    return v if v > 1e-12 else 1.0
-
-
-def fit_hyperparameters(
-    X: np.ndarray,
-    y: np.ndarray,
-    *,
-    rng: np.random.Generator,
-    max_points: int = 600,
-    restarts: int = 3,
-    max_length_scale: float = MAX_LENGTH_SCALE,
-) -> tuple[np.ndarray, float, float]:
-    """Type-II maximum likelihood hyperparameters of the full GP (Sec. 5.2, Eq. 5.11).
-
-    Parameters
-    ----------
-    X : numpy.ndarray
-        (n, d) inputs.
-    y : numpy.ndarray
-        (n,) targets.
-    rng : numpy.random.Generator
-        Draws the subsample (when n > max_points) and the random restarts.
-    max_points : int
-        At most this many points (drawn uniformly without replacement) enter the evidence.
-    restarts : int
-        Number of L-BFGS-B runs (>= 1): the heuristic start, then random ones.
-    max_length_scale : float
-        Upper bound of the length scales in standard deviations of their columns (see
-        the module docstring for why it is short).
-
-    Returns
-    -------
-    length_scales : numpy.ndarray
-        (d,) SE-ARD length scales.
-    signal_var : float
-        Signal variance.
-    noise_var : float
-        Noise variance.
-    """
-    X = np.asarray(X, dtype=float)
-    y = np.asarray(y, dtype=float).reshape(-1)
-    if X.ndim != 2 or X.shape[0] != y.shape[0] or X.shape[0] < 2:
-        raise ValueError(f"X, y: need (n, d) and (n,) with n >= 2, got {X.shape}, {y.shape}")
-    if not (np.all(np.isfinite(X)) and np.all(np.isfinite(y))):
-        raise ValueError("X, y: must be finite (no NaN or inf)")
-    if X.shape[0] > max_points:
-        idx = rng.choice(X.shape[0], size=max_points, replace=False)
-        X, y = X[idx], y[idx]
-    d = X.shape[1]
-    bounds = hyperparameter_bounds(X, y, max_length_scale=max_length_scale)
-    lo = np.array([b[0] for b in bounds])
-    hi = np.array([b[1] for b in bounds])
-    start = np.clip(initial_log_params(X, y), lo, hi)
-
-    def negative(theta: np.ndarray) -> tuple[float, np.ndarray]:
-        value, grad = log_evidence(theta, X, y)
-        if not np.isfinite(value):
-            return 1e25, np.zeros_like(theta)
-        return -value, -grad
-
-    best_theta, best_value = start, negative(start)[0]
-    for attempt in range(max(1, int(restarts))):
-        theta0 = start if attempt == 0 else np.clip(start + rng.normal(0.0, 1.0, d + 2), lo, hi)
-        res = minimize(negative, theta0, jac=True, method="L-BFGS-B", bounds=bounds)
-        if res.fun < best_value:
-            best_theta, best_value = res.x, float(res.fun)
-    return np.exp(best_theta[:d]), float(np.exp(best_theta[d])), float(np.exp(best_theta[d + 1]))

@@ -7,45 +7,8 @@ noise (Eqs. 5.4-5.6); its predictive mean and variance (5.6, 5.9) give the confi
 yields a query feature; the winner is the largest posterior mean over all clusters and
 candidates (5.8), and its confidence is the arbitration factor ``beta`` (Sec. 5.2, 6.2.3).
 Introspection uses the normalised entropy of the label distribution (Sec. 7.3, Eq. 7.7).
-
-Decisions where the thesis is silent:
-
-- Hyperparameters of each one-vs-all GP maximise the full GP's evidence (5.11) on one
-  shared *class-balanced* subsample of at most ``hyper_points`` points: every cluster gets
-  an equal quota (smaller clusters give all their points, the rest is shared out among the
-  larger ones), so the evidence of a small cluster is not swamped by the others. The
-  subsample is the same for every cluster; only the +-1 targets change.
-- Hard negatives (:meth:`SOGPClassifier.fit`'s ``negatives``; a decision beyond the
-  thesis, whose GPs saw only demonstrated features): features known to be *no* task, with
-  target -1 in every one-vs-all GP. Trained only on the demonstrated target's features,
-  nothing tells a GP that another candidate's feature at the same tick is not the task,
-  and Eq. (5.8) then often picks a wrong target; with them the means of such candidates
-  are pulled below 0, so the confidence (5.10) is low when no candidate looks like a
-  task ("better no assistance than wrong assistance", Sec. 7.4).
-- Every GP then absorbs *all* training points online, in its own random order (drawn from
-  the ``rng`` passed to :meth:`SOGPClassifier.fit`), so no cluster's points arrive as one
-  block before the capacity is reached. With ``refine`` the posterior is then
-  re-estimated from all of them on the chosen basis (:meth:`SparseOnlineGP.refine`, the
-  fixed point of repeated online sweeps); off by default, and for the shipped model.
-- :meth:`SOGPClassifier.predict_proba` normalises the confidences (5.10) over the clusters;
-  for the two-class setting of Sec. 7.3 this is the distribution whose entropy the thesis
-  reports. Far from all training data every mean tends to 0 and every confidence to 1/2,
-  so the distribution tends to uniform and the entropy to 1 -- the introspection the thesis
-  values. If every confidence underflows to 0 the distribution is uniform.
-- :func:`normalised_entropy` uses ``0 log 0 = 0`` and is 0 when there is a single class.
-- :func:`recognise` ranks with the posterior means alone (5.8 needs nothing else) and
-  computes the predictive variance only for the winning candidate and cluster, so a tick
-  costs O(m c b) plus one O(b^2) product instead of O(m c b^2).
-- :func:`recognise` returns the winning cluster as its id (an element of ``classes_``), not
-  its column index.
-- Inputs are used as given; the caller standardises them (``autonomy.features``).
-- :func:`recognise` never picks a non-finite score (NaN compares false, and an ``inf``
-  would win every argmax): non-finite entries are ignored, and when no candidate and
-  cluster has a finite score there is no recognition: candidate and cluster ``-1``,
-  ``beta = 0`` (the mode then does not assist). A non-finite variance of the winner also
-  gives ``beta = 0``.
-- ``max_length_scale`` bounds the GPs' length scales in standard deviations of the
-  (standardised) inputs; see :mod:`autonomy.sogp` for why it is short (0.5).
+Inputs are used as given; the caller standardises them (``autonomy.features``). Choices
+where the thesis is silent: docs/decisions.md.
 """
 
 from __future__ import annotations
@@ -55,7 +18,8 @@ from typing import Any
 import numpy as np
 from scipy.special import ndtr
 
-from autonomy.sogp import MAX_LENGTH_SCALE, SparseOnlineGP, fit_hyperparameters
+from autonomy.gp_hyperparameters import fit_hyperparameters
+from autonomy.sogp import MAX_LENGTH_SCALE, SparseOnlineGP
 
 
 class SOGPClassifier:
@@ -69,7 +33,7 @@ class SOGPClassifier:
         Size of the class-balanced subsample on which the evidence is maximised.
     restarts : int
         L-BFGS-B runs per class for the hyperparameters (see
-        :func:`autonomy.sogp.fit_hyperparameters`).
+        :func:`autonomy.gp_hyperparameters.fit_hyperparameters`).
     max_length_scale : float
         Upper bound of the length scales, in standard deviations of the inputs.
     refine : bool

@@ -1,56 +1,6 @@
-"""Unsupervised training of the contextual-task model (thesis Sec. 6.2.1-6.2.2, 7.4.1;
-spec section 3; issue 3, "Demonstrations and training").
-
-:func:`train` takes the task features ``q`` (n, 6) of unlabelled demonstrations (each
-computed against the demonstrated target, ``autonomy.features.task_features``) and
-
-1. encodes the angle as (cos, sin) and standardises every column
-   (:class:`~autonomy.features.FeatureScaler`);
-2. clusters the standardised features with a Dirichlet-process Gaussian mixture
-   (scikit-learn's ``BayesianGaussianMixture``, ``weight_concentration_prior_type=
-   "dirichlet_process"``, full covariances, at most ``max_components`` components),
-   restarted ``restarts`` times with different seeds keeping the highest evidence lower
-   bound (scikit-learn's ``n_init``; the thesis "restarted inference many times and kept the
-   highest evidence", Sec. 7.4.1); each point's cluster is its most probable component;
-3. drops tiny clusters (below); the survivors are the motion primitives;
-4. trains the one-vs-all SOGP classifier over the primitives (capacity 250,
-   hyperparameters from the full GP's evidence on a class-balanced subsample, length
-   scales at most 0.5 standard deviations, Ch. 5; see :mod:`autonomy.sogp`);
-5. keeps per primitive the GMR points ``(s*, u*)`` of the fast online GMR (Alg. 2) and the
-   mean and covariance used by the Mahalanobis stop of the rollout (Eq. 6.3).
-
-The true task types, when given, are used only for the cluster summary (reporting);
-nothing in the model depends on them.
-
-Decisions where the spec is silent:
-
-- The DP-GMM is fitted on a random subsample of at most ``dpgmm_points`` points (the
-  variational inference is O(n K d^2) per iteration and 20 Hz demonstrations are highly
-  correlated); every point is then labelled by the fitted mixture.
-- Tiny clusters: a component labelling fewer than ``max(min_cluster_points,
-  min_cluster_share * n)`` points is dropped, and its points go to their most probable
-  *kept* component (the argmax of the mixture's responsibilities over the kept columns).
-  Such components are too small for a one-vs-all GP with balanced evidence and for a
-  stable Mahalanobis stop. The largest component is always kept.
-- Primitives are numbered 0, 1, ... by decreasing size (ties by component index) and
-  named ``primitive_<id>``; names carry no task label.
-- The Mahalanobis statistics of a primitive are the empirical mean and covariance
-  (ddof 0) of the standardised features assigned to it after the merge: the thesis
-  computes them "beforehand" from the cluster's data (Sec. 6.2.3), and after merging they
-  describe the primitive better than the mixture component they started from.
-  ``covariance_reg`` (0.01, i.e. a floor of 0.1 standard deviations) is added to the
-  diagonal: ``theta`` is a function of ``s`` and ``u``, so the features lie on a curved
-  5-dimensional surface in the 7 encoded dimensions and a cluster's covariance has
-  near-zero directions (eigenvalues down to 1e-4 measured) in which any rolled-out
-  ``q_est`` would count as an outlier at once.
-- Capacity 250 rather than the thesis's 500: measured on the 48-run demonstrations the
-  target-pick rate is the same (83 % at 250, 82 % at 500, in-sample, 0.5 std cap)
-  and the model file shrinks from 8 MB to about 2 MB.
-- Numerical safety: the SOGP itself guards against near-duplicate inputs
-  (:mod:`autonomy.sogp`); a GP that still ends non-finite is an error, not a retry.
-- Randomness: one ``numpy.random.Generator`` from ``seed`` draws the DP-GMM subsample,
-  the DP-GMM seed, and everything in the classifier; the same data and seed give the same
-  model (checked by the tests to 1e-9).
+"""Unsupervised training of the contextual-task model (thesis Sec. 6.2.1-6.2.3, 7.4.1;
+issue 3, "Demonstrations and training"): DP-GMM motion primitives and the SOGP classifier
+over them. Choices where the thesis is silent: docs/decisions.md.
 """
 
 from __future__ import annotations
@@ -72,7 +22,7 @@ from autonomy.sogp_classifier import SOGPClassifier
 
 @dataclass(frozen=True, slots=True)
 class TrainSettings:
-    """Settings of :func:`train` (values: see the module docstring)."""
+    """Settings of :func:`train` (choices: docs/decisions.md)."""
 
     max_components: int = 20  # upper bound of the DP-GMM's truncation
     restarts: int = 5  # DP-GMM inference runs; the highest lower bound is kept
@@ -129,6 +79,11 @@ def cluster_dpgmm(
     fit_rows: np.ndarray | None = None,
 ) -> tuple[np.ndarray, dict[str, Any]]:
     """DP-GMM clustering of standardised features with tiny clusters merged.
+
+    scikit-learn's ``BayesianGaussianMixture`` (``weight_concentration_prior_type=
+    "dirichlet_process"``, full covariances, at most ``max_components`` components,
+    ``n_init`` = ``restarts``: the thesis "restarted inference many times and kept the
+    highest evidence", Sec. 7.4.1).
 
     Parameters
     ----------
@@ -261,13 +216,20 @@ def train(
 ) -> ContextualModel:
     """Train a contextual-task model on unlabelled task features.
 
+    Encode and standardise the features; cluster the way points with a DP-GMM
+    (:func:`cluster_dpgmm`, Sec. 7.4.1), tiny clusters merged: the motion primitives;
+    train the one-vs-all SOGP classifier over them (Ch. 5, :func:`fit_classifier`); keep
+    per primitive the GMR points ``(s*, u*)`` (Alg. 2) and the mean and covariance of the
+    rollout's Mahalanobis stop (Eq. 6.3). ``task`` serves only the cluster summary.
+
     Parameters
     ----------
     q : numpy.ndarray
         (n, 6) task features ``(s_x [m], s_y [m], theta [rad], v_x, v_y, omega)`` with the
         command in normalised (-1, 1) units, each against its demonstrated target.
     seed : int
-        Seeds every random choice (see the module docstring).
+        Seeds every random choice: one generator draws the DP-GMM subsample and seed
+        and everything in the classifier, so the same data and seed give the same model.
     settings : TrainSettings, optional
     task : numpy.ndarray, optional
         (n,) true task types, for the cluster summary only.
@@ -282,15 +244,7 @@ def train(
         With metadata: versions, creation date, data hash, settings, cluster summary.
     """
     settings = TrainSettings() if settings is None else settings
-    q = np.asarray(q, dtype=float)
-    if q.ndim != 2 or q.shape[1] != 6:
-        raise ValueError(f"training features q: expected shape (n, 6), got {q.shape}")
-    if q.shape[0] < 20:
-        raise ValueError(f"training features q: need at least 20 points, got {q.shape[0]}")
-    if not np.all(np.isfinite(q)):
-        raise ValueError("training features q: must be finite (no NaN or inf)")
-    if task is not None and np.shape(task) != (q.shape[0],):
-        raise ValueError(f"task labels: expected shape ({q.shape[0]},), got {np.shape(task)}")
+    q = _checked_features(q, task)
     rng = np.random.default_rng(seed)
     X = encode(q)
     scaler = FeatureScaler().fit(X)
@@ -298,16 +252,7 @@ def train(
     wp = way_points(len(Z), run, settings.stride)
     labels, info = cluster_dpgmm(Z, settings=settings, rng=rng, fit_rows=wp)
     c = int(labels.max()) + 1
-    means = np.empty((c, Z.shape[1]))
-    covs = np.empty((c, Z.shape[1], Z.shape[1]))
-    chunks = []
-    for j in range(c):
-        zj = Z[labels == j]
-        means[j] = zj.mean(axis=0)
-        d = zj - means[j]
-        covs[j] = d.T @ d / len(zj) + settings.covariance_reg * np.eye(Z.shape[1])  # Eq. (6.3)
-        chunks.append(q[labels == j][:, [0, 1, 3, 4, 5]])  # s* -> u* (Alg. 2)
-    offsets = np.concatenate(([0], np.cumsum([len(ch) for ch in chunks]))).astype(np.int64)
+    means, covs, gmr_points, offsets = _primitive_statistics(q, Z, labels, settings)
     classifier, tols = fit_classifier(Z[wp], labels[wp], settings=settings, rng=rng)
     info["novelty_tol"] = tols
     info["way_points"] = int(len(wp))
@@ -329,10 +274,46 @@ def train(
         cluster_ids=np.arange(c, dtype=np.int64),
         cluster_means=means,
         cluster_covariances=covs,
-        gmr_points=np.concatenate(chunks),
+        gmr_points=gmr_points,
         gmr_offsets=offsets,
         metadata=metadata,
     )
+
+
+def _checked_features(q: np.ndarray, task: np.ndarray | None) -> np.ndarray:
+    """``q`` as a float (n, 6) array of at least 20 finite rows, ``task`` of shape (n,)
+    if given; ValueError naming them otherwise."""
+    q = np.asarray(q, dtype=float)
+    if q.ndim != 2 or q.shape[1] != 6:
+        raise ValueError(f"training features q: expected shape (n, 6), got {q.shape}")
+    if q.shape[0] < 20:
+        raise ValueError(f"training features q: need at least 20 points, got {q.shape[0]}")
+    if not np.all(np.isfinite(q)):
+        raise ValueError("training features q: must be finite (no NaN or inf)")
+    if task is not None and np.shape(task) != (q.shape[0],):
+        raise ValueError(f"task labels: expected shape ({q.shape[0]},), got {np.shape(task)}")
+    return q
+
+
+def _primitive_statistics(
+    q: np.ndarray, Z: np.ndarray, labels: np.ndarray, settings: TrainSettings
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Per primitive ``0..c-1`` of ``labels`` (n,): the mean (c, 7) and regularised
+    covariance (c, 7, 7) of its standardised features ``Z`` (n, 7) for the Mahalanobis
+    stop (Eq. 6.3), and its GMR points (Alg. 2): rows ``(s_x, s_y, v_x, v_y, omega)`` of
+    ``q`` (n, 6), primitive by primitive, with the (c + 1,) offsets of each block."""
+    c = int(labels.max()) + 1
+    means = np.empty((c, Z.shape[1]))
+    covs = np.empty((c, Z.shape[1], Z.shape[1]))
+    chunks = []
+    for j in range(c):
+        zj = Z[labels == j]
+        means[j] = zj.mean(axis=0)
+        d = zj - means[j]
+        covs[j] = d.T @ d / len(zj) + settings.covariance_reg * np.eye(Z.shape[1])  # Eq. (6.3)
+        chunks.append(q[labels == j][:, [0, 1, 3, 4, 5]])  # s* -> u* (Alg. 2)
+    offsets = np.concatenate(([0], np.cumsum([len(ch) for ch in chunks]))).astype(np.int64)
+    return means, covs, np.concatenate(chunks), offsets
 
 
 SYNTHETIC_TASKS = ("doorway_crossing", "object_inspection", "wall_following")
@@ -380,63 +361,75 @@ def synthetic_demonstrations(
     run : numpy.ndarray
         (n,) run index.
     """
-    from autonomy.features import task_features  # local: keeps the module's imports light
-
     qs, tasks, run_ids = [], [], []
     r_id = 0
     for name in SYNTHETIC_TASKS:
         for k in range(runs):
             side = 1.0 if k % 2 == 0 else -1.0  # both sides and directions, alternately
-            if name == "doorway_crossing":
-                dist, bearing = rng.uniform(1.5, 3.5), side * rng.uniform(0.0, 1.0)
-                target = dist * np.array([math.cos(bearing), math.sin(bearing)])
-            elif name == "object_inspection":
-                target = np.array([rng.uniform(0.8, 1.2), rng.uniform(-0.2, 0.2)])
-            else:
-                target = np.array([rng.uniform(-0.5, 0.5), side * rng.uniform(0.6, 1.0)])
-            pose = np.zeros(3)
-            speed = rng.uniform(0.4, 0.6)
-            for _ in range(steps):
-                c, s = math.cos(pose[2]), math.sin(pose[2])
-                d = target - pose[:2]
-                sr = np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1]])  # robot frame
-                if name == "wall_following":
-                    # the wall point stays abeam: the nearest point of a wall along x
-                    target = np.array([pose[0], target[1]])
-                    d = target - pose[:2]
-                    sr = np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1]])
-                bearing = math.atan2(sr[1], sr[0])
-                if name == "doorway_crossing":
-                    u = np.array(
-                        [
-                            speed * math.cos(bearing),
-                            speed * math.sin(bearing),
-                            np.clip(1.5 * bearing, -1, 1),
-                        ]
-                    )
-                elif name == "object_inspection":
-                    r = float(np.hypot(*sr))
-                    u = np.array(
-                        [
-                            0.5 * (r - 1.0),
-                            side * speed,
-                            np.clip(2.0 * bearing - side * speed / max(r, 0.3), -1, 1),
-                        ]
-                    )
-                else:
-                    u = np.array(
-                        [speed, 0.5 * (abs(sr[1]) - 0.8) * np.sign(sr[1]), -0.5 * math.sin(pose[2])]
-                    )
-                u = np.clip(u + noise * rng.standard_normal(3), -1.0, 1.0)
-                qs.append(task_features(sr, u)[0])
-                tasks.append(name)
-                run_ids.append(r_id)
-                vx, vy, w = u[0], u[1], 1.2 * u[2]
-                pose = pose + dt * np.array([c * vx - s * vy, s * vx + c * vy, w])
-                if name == "doorway_crossing" and np.hypot(*sr) < 0.3:
-                    break
+            q_run = _synthetic_run(name, side, rng, steps=steps, dt=dt, noise=noise)
+            qs += q_run
+            tasks += [name] * len(q_run)
+            run_ids += [r_id] * len(q_run)
             r_id += 1
     return np.array(qs), np.array(tasks), np.array(run_ids)
+
+
+def _synthetic_run(
+    name: str, side: float, rng: np.random.Generator, *, steps: int, dt: float, noise: float
+) -> list[np.ndarray]:
+    """One run of pattern ``name`` (see :func:`synthetic_demonstrations`): its (6,) task
+    features tick by tick."""
+    from autonomy.features import task_features  # local: keeps the module's imports light
+
+    if name == "doorway_crossing":
+        dist, bearing = rng.uniform(1.5, 3.5), side * rng.uniform(0.0, 1.0)
+        target = dist * np.array([math.cos(bearing), math.sin(bearing)])
+    elif name == "object_inspection":
+        target = np.array([rng.uniform(0.8, 1.2), rng.uniform(-0.2, 0.2)])
+    else:
+        target = np.array([rng.uniform(-0.5, 0.5), side * rng.uniform(0.6, 1.0)])
+    pose = np.zeros(3)
+    speed = rng.uniform(0.4, 0.6)
+    out = []
+    for _ in range(steps):
+        c, s = math.cos(pose[2]), math.sin(pose[2])
+        d = target - pose[:2]
+        sr = np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1]])  # robot frame
+        if name == "wall_following":
+            # the wall point stays abeam: the nearest point of a wall along x
+            target = np.array([pose[0], target[1]])
+            d = target - pose[:2]
+            sr = np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1]])
+        u = _synthetic_stick(name, sr, pose, side, speed)
+        u = np.clip(u + noise * rng.standard_normal(3), -1.0, 1.0)
+        out.append(task_features(sr, u)[0])
+        vx, vy, w = u[0], u[1], 1.2 * u[2]
+        pose = pose + dt * np.array([c * vx - s * vy, s * vx + c * vy, w])
+        if name == "doorway_crossing" and np.hypot(*sr) < 0.3:
+            break
+    return out
+
+
+def _synthetic_stick(
+    name: str, sr: np.ndarray, pose: np.ndarray, side: float, speed: float
+) -> np.ndarray:
+    """The scripted stick (3,) of pattern ``name`` before noise, normalised units, for the
+    target ``sr`` (2,) [m] in the robot frame and the robot's ``pose`` (3,) [m, m, rad]."""
+    bearing = math.atan2(sr[1], sr[0])
+    if name == "doorway_crossing":
+        return np.array(
+            [speed * math.cos(bearing), speed * math.sin(bearing), np.clip(1.5 * bearing, -1, 1)]
+        )
+    if name == "object_inspection":
+        r = float(np.hypot(*sr))
+        return np.array(
+            [
+                0.5 * (r - 1.0),
+                side * speed,
+                np.clip(2.0 * bearing - side * speed / max(r, 0.3), -1, 1),
+            ]
+        )
+    return np.array([speed, 0.5 * (abs(sr[1]) - 0.8) * np.sign(sr[1]), -0.5 * math.sin(pose[2])])
 
 
 def format_summary(model: ContextualModel) -> str:

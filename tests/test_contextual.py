@@ -13,13 +13,12 @@ from hypothesis import strategies as st
 from autonomy.contextual import (
     ContextualSettings,
     ContextualTaskMode,
-    LocalGMR,
     Recogniser,
     build_runtime,
-    local_gmm,
     rollout,
 )
 from autonomy.gmr import gmr
+from autonomy.local_gmr import LocalGMR, local_gmm
 from autonomy.modes import settings_from
 from autonomy.safety import footprint_clearance, safe_command
 from autonomy.sogp_classifier import recognise

@@ -197,7 +197,7 @@ def test_repeats_summarise_the_f05_over_seeds(result):
 
 
 def test_bad_settings_are_refused(rng):
-    with pytest.raises(ValueError, match="--folds"):
+    with pytest.raises(ValueError, match="folds: must be an integer >= 2"):
         EvaluationSettings(folds=1)
     with pytest.raises(ValueError, match="sogp_length_scale_grid"):
         EvaluationSettings(sogp_length_scale_grid=(0.5, 0.0))
@@ -207,7 +207,7 @@ def test_bad_settings_are_refused(rng):
         with pytest.raises(ValueError, match="sogp_claim_grid"):
             EvaluationSettings(sogp_claim_grid=claims)
     demos = synthetic_demos(rng, runs=1, steps=10)
-    with pytest.raises(ValueError, match=r"--folds: must be between 2 and the number of runs"):
+    with pytest.raises(ValueError, match=r"folds: must be between 2 and the number of runs"):
         evaluate(demos, kinds=KINDS, settings=EvaluationSettings(folds=4))
     one = synthetic_demos(rng, runs=1, steps=10)
     keep = one.task == "wall_following"
@@ -317,8 +317,8 @@ def test_hard_negatives_are_other_candidates_of_the_same_tick(rng):
 
 def test_cache_records_once_and_checks_the_hash(recorded, tmp_path, monkeypatch):
     from autonomy.training import data_sha256
-    from study.cli.evaluate import cache_root, cached_demonstrations
     from study.jobs.demonstrations import load_demonstrations
+    from study.jobs.evaluation import cache_root, cached_demonstrations
 
     monkeypatch.setenv("ASA_CACHE", str(tmp_path / "cache"))
     assert cache_root() == tmp_path / "cache"
@@ -328,10 +328,10 @@ def test_cache_records_once_and_checks_the_hash(recorded, tmp_path, monkeypatch)
     assert [p.name for p in (tmp_path / "cache").iterdir()] == [sha[:16]]  # no leftovers
     again, fresh_again = cached_demonstrations(sha, runs=1, seed=4)
     assert again == folder and not fresh_again  # served from the cache
-    with pytest.raises(ValueError, match="pass --demonstrations"):
+    with pytest.raises(ValueError, match="pass the demonstrations folder"):
         cached_demonstrations("0" * 64, runs=1, seed=4, where="m.npz")
     assert not (tmp_path / "cache" / ("0" * 16)).exists()
-    with pytest.raises(ValueError, match=r"cached in .* pass --demonstrations"):
+    with pytest.raises(ValueError, match=r"cached in .* pass the demonstrations folder"):
         (folder.parent / ("1" * 16)).symlink_to(folder)  # a cache that holds other data
         cached_demonstrations("1" * 64, where="m.npz")
     monkeypatch.delenv("ASA_CACHE")

@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from sklearn.metrics import confusion_matrix, fbeta_score
 
-from autonomy.recognition_metrics import confusion, f_beta, trajectory_rates
+from autonomy.evaluation.metrics import confusion, f_beta, trajectory_rates
 
 LABELS = ["door", "wall", "object", "dock"]
 label = st.sampled_from(LABELS)

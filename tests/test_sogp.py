@@ -9,13 +9,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.optimize import approx_fprime
 
-from autonomy.sogp import (
-    SparseOnlineGP,
+from autonomy.gp_hyperparameters import (
     fit_hyperparameters,
     hyperparameter_bounds,
     initial_log_params,
     log_evidence,
 )
+from autonomy.sogp import SparseOnlineGP
 from autonomy.sogp_classifier import (
     SOGPClassifier,
     balanced_subsample,

@@ -1,15 +1,9 @@
 """``asa train``: learn the contextual-task model from recorded demonstrations (thesis
 Sec. 6.2, 7.4.1; issue 3, "Demonstrations and training").
 
-A thin shell over :func:`train_model`: load the demonstrations
-(:func:`study.jobs.demonstrations.load_demonstrations`, moving ticks only), train
-(:func:`autonomy.training.train`: DP-GMM clustering, tiny clusters merged, the SOGP
-classifier), save the model file (:func:`autonomy.model.save_model`) and print the cluster
-summary. The true task types of the demonstrations appear only in that summary.
-
-The same demonstrations and ``--seed`` reproduce the same model (arrays identical; only
-the creation date in the metadata differs), which is how the shipped model
-``autonomy/models/default.npz`` is checked (see ``autonomy/models/README.md``).
+Click parsing around :func:`study.jobs.training.train_model`; prints the cluster summary
+(:func:`autonomy.training.format_summary`), the only place the demonstrations' true task
+types appear.
 """
 
 from __future__ import annotations
@@ -18,42 +12,8 @@ from pathlib import Path
 
 import click
 
-from autonomy.model import ContextualModel, save_model
-from autonomy.training import TrainSettings, format_summary, train
-
-
-def train_model(
-    demonstrations: str | Path,
-    out: str | Path,
-    *,
-    seed: int = 0,
-    settings: TrainSettings | None = None,
-) -> ContextualModel:
-    """Train on the demonstrations in ``demonstrations`` and save the model to ``out``.
-
-    Raises
-    ------
-    ValueError
-        For unreadable demonstrations (naming the file and field) or too few points.
-    """
-    from study.jobs.demonstrations import load_demonstrations
-
-    demos = load_demonstrations(demonstrations)
-    if len(demos) == 0:
-        raise ValueError(f"{demonstrations}: no moving ticks in these demonstrations")
-    out = Path(out)
-    if out.exists() and out.is_dir():
-        raise ValueError(f"{out}: --out must be a file path (e.g. model.npz), not a directory")
-    model = train(
-        demos.q,
-        seed=seed,
-        settings=settings,
-        task=demos.task,
-        run=demos.run,
-        source=Path(demonstrations).name,
-    )
-    save_model(model, out)
-    return model
+from autonomy.training import format_summary
+from study.jobs.training import train_model
 
 
 @click.command("train")
@@ -80,6 +40,12 @@ def train_model(
 )
 def train_command(demonstrations: Path, out: Path, seed: int) -> None:
     """Train the contextual-task model (DP-GMM clusters + SOGP classifier) and save it."""
-    model = train_model(demonstrations, out, seed=seed)
+    try:
+        model = train_model(demonstrations, out, seed=seed)
+    except ValueError as error:
+        prefix = f"{out}: out "
+        if str(error).startswith(prefix):  # the job names its parameter, the CLI its flag
+            raise ValueError(f"{out}: --out {str(error)[len(prefix) :]}") from None
+        raise
     click.echo(format_summary(model))
     click.echo(f"model written to {out}")

@@ -1,33 +1,9 @@
-"""Recognition metrics: success, error and null rates along a trajectory (thesis Sec.
-7.2.2), F_beta per class (Sec. 7.3, Table 7.6: F_0.5) and the confusion matrix.
+"""Recognition metrics (thesis Sec. 7.2.2, 7.3): success, error and null rates along a
+trajectory, F_beta per class (Table 7.6: F_0.5), the confusion matrix, and their
+variants where "right" needs the right task type and the right target (issue 3).
 
-Along a test trajectory every tick's decision is compared with the truth (Sec. 7.2.2):
-
-- success rate: fraction of ticks where the correct goal is identified,
-- error rate: fraction where a wrong goal is inferred,
-- null rate: fraction where no goal is recognised,
-
-so the three sum to 1. A label is any hashable value; for the recognisers of
-:mod:`autonomy.bayes_filter` it is ``(task type, component id)``, so a success needs both
-the right task type and the right target (issue 3). ``None`` is the null decision.
-
-F_beta for class ``c`` (van Rijsbergen), with precision ``P = tp / (tp + fp)`` and recall
-``R = tp / (tp + fn)``:
-
-    F_beta = (1 + beta^2) P R / (beta^2 P + R)
-
-``beta = 0.5`` weighs precision twice as much as recall. Equivalent call:
-``sklearn.metrics.fbeta_score(y_true, y_pred, beta=0.5, labels=labels, average=None,
-zero_division=0)``; in R: ``MLmetrics::FBeta_Score``.
-
-Decisions where the thesis is silent:
-
-- A class with no true and no predicted instance, or with ``tp = 0``, gets F = 0
-  (scikit-learn's ``zero_division=0``).
-- Predictions outside ``labels`` (a null decision, or a class not evaluated) count as false
-  negatives of the true class and as nobody's false positive; the confusion matrix leaves
-  them out, as scikit-learn's ``confusion_matrix(labels=...)`` does.
-- A trajectory with no ticks is rejected (the rates would be undefined).
+A label is any hashable value (for the recognisers of :mod:`autonomy.bayes_filter`,
+``(task type, component id)``); ``None`` is the null decision.
 """
 
 from __future__ import annotations
@@ -40,7 +16,9 @@ import numpy as np
 def trajectory_rates(
     decisions: Sequence[Hashable | None], truth: Sequence[Hashable]
 ) -> dict[str, float]:
-    """Success, error and null rates along one trajectory (Sec. 7.2.2).
+    """Success, error and null rates along one trajectory (Sec. 7.2.2): the fractions of
+    ticks where the correct goal is identified, a wrong goal is inferred, and no goal is
+    recognised.
 
     Parameters
     ----------
@@ -104,7 +82,13 @@ def f_beta(
     labels: Sequence[Hashable],
     beta: float = 0.5,
 ) -> dict[Hashable, float]:
-    """F_beta per class (Sec. 7.3, Table 7.6 with beta = 0.5).
+    """F_beta per class (Sec. 7.3, Table 7.6 with beta = 0.5; van Rijsbergen).
+
+    With precision ``P = tp / (tp + fp)`` and recall ``R = tp / (tp + fn)``,
+    ``F_beta = (1 + beta^2) P R / (beta^2 P + R)``; ``beta = 0.5`` weighs precision twice
+    as much as recall. Equivalent call: ``sklearn.metrics.fbeta_score(y_true, y_pred,
+    beta=0.5, labels=labels, average=None, zero_division=0)``; in R:
+    ``MLmetrics::FBeta_Score``.
 
     Parameters
     ----------
@@ -135,3 +119,62 @@ def f_beta(
         denom = (1.0 + b2) * tp + b2 * fn + fp
         out[lab] = (1.0 + b2) * tp / denom if tp > 0 else 0.0
     return out
+
+
+def f05_with_targets(
+    true_task: Sequence[str],
+    pred_task: Sequence[str | None],
+    target_ok: Sequence[bool],
+    labels: Sequence[str],
+    *,
+    beta: float = 0.5,
+) -> dict[str, float]:
+    """F_beta (Eq. 7.6) per task type where "right" needs the right type and target.
+
+    Parameters
+    ----------
+    true_task, pred_task : sequence
+        (n,) true and predicted task types (None: no prediction).
+    target_ok : sequence of bool
+        (n,) whether the predicted target is the demonstrated one.
+    labels : sequence of str
+        Task types to score.
+
+    Returns
+    -------
+    dict
+        Task type -> F_beta in [0, 1], and ``"macro"``: their mean.
+    """
+    t = np.asarray(true_task, dtype=object)
+    p = np.asarray(pred_task, dtype=object)
+    ok = np.asarray(target_ok, dtype=bool)
+    b2 = beta * beta
+    out: dict[str, float] = {}
+    for c in labels:
+        right = (p == c) & (t == c) & ok
+        tp = int(right.sum())
+        fp = int(((p == c) & ~right).sum())
+        fn = int(((t == c) & ~right).sum())
+        denom = (1.0 + b2) * tp + b2 * fn + fp
+        out[c] = (1.0 + b2) * tp / denom if tp > 0 else 0.0  # Eq. (7.6)
+    out["macro"] = float(np.mean([out[c] for c in labels])) if labels else 0.0
+    return out
+
+
+def confusion_with_targets(
+    true_task: Sequence[str],
+    pred_task: Sequence[str | None],
+    target_ok: Sequence[bool],
+    labels: Sequence[str],
+) -> list[list[int]]:
+    """Rows = true type; columns = predicted type at the right target, then
+    ``wrong_target`` (any type at a wrong target, or no prediction); (k, k + 1) counts."""
+    index = {c: i for i, c in enumerate(labels)}
+    m = np.zeros((len(labels), len(labels) + 1), dtype=int)
+    for t, p, ok in zip(true_task, pred_task, target_ok, strict=True):
+        i = index.get(t)
+        if i is None:
+            continue
+        j = index.get(p) if (ok and p is not None) else None
+        m[i, len(labels) if j is None else j] += 1
+    return m.tolist()

@@ -1,0 +1,47 @@
+"""Offline evaluation of contextual-task recognition on held-out demonstrations (thesis
+Sec. 7.2.2, 7.3, 7.4; issue 3, "Offline evaluation").
+
+Task classification by cross-validation by run of the SOGP classifier (Ch. 5) against
+an SVM, k-nearest neighbours and a random forest (F0.5, Table 7.6); introspection on
+unseen task types (normalised entropy, Eq. 7.7, Table 7.9); success, error and null
+rates along held-out runs of the SOGP recogniser, the Bayes filter (Ch. 4) and the
+exponential baseline (Eq. 7.5). Choices where the thesis is silent: docs/decisions.md;
+measured figures: docs/results.md.
+"""
+
+from autonomy.evaluation.classifiers import FittedClassifier, fit_method
+from autonomy.evaluation.cross_validation import evaluate
+from autonomy.evaluation.folds import (
+    EvaluationData,
+    candidate_features,
+    check_demonstrations,
+    hard_negatives,
+    run_folds,
+    way_points_of,
+)
+from autonomy.evaluation.jobs import FoldResult, PairResult
+from autonomy.evaluation.metrics import confusion_with_targets, f05_with_targets
+from autonomy.evaluation.report import format_report, summarise_repeats
+from autonomy.evaluation.settings import METHODS, RECOGNISERS, WRONG_TARGET, EvaluationSettings
+
+__all__ = [
+    "METHODS",
+    "RECOGNISERS",
+    "WRONG_TARGET",
+    "EvaluationData",
+    "EvaluationSettings",
+    "FittedClassifier",
+    "FoldResult",
+    "PairResult",
+    "candidate_features",
+    "check_demonstrations",
+    "confusion_with_targets",
+    "evaluate",
+    "f05_with_targets",
+    "fit_method",
+    "format_report",
+    "hard_negatives",
+    "run_folds",
+    "summarise_repeats",
+    "way_points_of",
+]

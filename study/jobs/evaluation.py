@@ -1,0 +1,204 @@
+"""The evaluation runner behind ``asa evaluate`` (thesis Sec. 7.2.2, 7.3, 7.4; issue 3,
+"Offline evaluation"): the model's recipe, the demonstrations behind it (cached, or
+recorded again), worker processes, and repeats with further seeds, around
+:func:`autonomy.evaluation.evaluate`. Choices: docs/decisions.md."""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import contextlib
+import multiprocessing
+import os
+import shutil
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+from autonomy.evaluation import EvaluationSettings, evaluate, summarise_repeats
+from autonomy.model import DEFAULT_MODEL, load_model
+
+RECIPE = {"task": "all", "runs": 12, "seed": 7}  # autonomy/models/README.md
+
+_FROM_MODEL = ("stride",)  # the model's settings the evaluation takes over
+
+
+class DemonstrationsMismatchError(ValueError):
+    """The demonstrations found for a model (cached, or recorded now) do not hash to its
+    ``metadata["data_sha256"]``; the fields let a caller word its own advice."""
+
+    def __init__(
+        self,
+        where: str,
+        *,
+        folder: Path,
+        recorded: bool,
+        recipe: dict[str, Any],
+        got: str,
+        expected: str,
+    ):
+        self.where, self.folder, self.recorded = where, folder, recorded
+        self.recipe, self.got, self.expected = recipe, got, expected
+        source = (
+            "recorded with " + ", ".join(f"{k}={v!r}" for k, v in recipe.items())
+            if recorded
+            else f"cached in {folder}"
+        )
+        super().__init__(
+            f"{where}: field 'metadata.data_sha256': the demonstrations {source} hash to "
+            f"{got[:16]}..., the model to {expected[:16]}...; pass the demonstrations "
+            "folder explicitly (demonstrations)"
+        )
+
+
+def cache_root() -> Path:
+    """``$ASA_CACHE``, else ``$XDG_CACHE_HOME/asa-study``, else ``~/.cache/asa-study``."""
+    if os.environ.get("ASA_CACHE"):
+        return Path(os.environ["ASA_CACHE"])
+    if os.environ.get("XDG_CACHE_HOME"):
+        return Path(os.environ["XDG_CACHE_HOME"]) / "asa-study"
+    return Path.home() / ".cache" / "asa-study"
+
+
+def cached_demonstrations(
+    data_sha256: str,
+    *,
+    task: str = RECIPE["task"],
+    runs: int = RECIPE["runs"],
+    seed: int = RECIPE["seed"],
+    where: str = "model",
+) -> tuple[Path, bool]:
+    """The cached demonstrations whose moving ticks hash to ``data_sha256``, recording
+    them (``task``, ``runs``, ``seed`` as ``asa demonstrations record``) if missing.
+
+    They are recorded into a temporary sibling folder, checked, and only then renamed
+    into place, so an interrupted recording never leaves a half-filled cache; a cached
+    folder is checked on every use.
+
+    Returns
+    -------
+    directory : pathlib.Path
+        ``cache_root() / data_sha256[:16]``.
+    recorded : bool
+        Whether they were recorded now.
+
+    Raises
+    ------
+    ValueError
+        Naming ``where``, if ``data_sha256`` is missing;
+        :class:`DemonstrationsMismatchError` if the demonstrations (cached or recorded)
+        do not hash to ``data_sha256``.
+    """
+    from autonomy.training import data_sha256 as hash_of
+    from study.jobs.demonstrations import load_demonstrations, plan_recording, record_demonstrations
+
+    if not (isinstance(data_sha256, str) and len(data_sha256) >= 16):
+        raise ValueError(f"{where}: field 'metadata.data_sha256': missing, cannot find its data")
+    final = cache_root() / data_sha256[:16]
+    recorded = not (final / "manifest.json").is_file()
+    folder = final
+    if recorded:
+        folder = final.parent / f".{final.name}.recording-{os.getpid()}"
+        shutil.rmtree(folder, ignore_errors=True)
+        record_demonstrations(folder, plan_recording(task, None), runs, seed=seed)
+    got = hash_of(load_demonstrations(folder).q)
+    if got != data_sha256:
+        if recorded:
+            shutil.rmtree(folder, ignore_errors=True)
+        raise DemonstrationsMismatchError(
+            where,
+            folder=final,
+            recorded=recorded,
+            recipe={"task": task, "runs": runs, "seed": seed},
+            got=got,
+            expected=data_sha256,
+        )
+    if recorded:
+        try:
+            folder.rename(final)
+        except OSError:  # another process filled the cache meanwhile
+            shutil.rmtree(folder, ignore_errors=True)
+    return final, recorded
+
+
+def run_evaluation(
+    demonstrations: str | Path | None,
+    *,
+    model: str | Path | None = None,
+    folds: int = 5,
+    seed: int = 0,
+    workers: int = 1,
+    repeats: int = 1,
+) -> dict[str, Any]:
+    """Evaluate the model's recipe on the demonstrations in ``demonstrations``.
+
+    The way-point ``stride`` comes from the ``model`` file (default: the shipped model),
+    the rest of the settings are the evaluation's own; without ``demonstrations`` the
+    model's own are used (:func:`cached_demonstrations`). ``workers`` > 1 runs the jobs
+    in that many ``spawn`` processes, one BLAS thread each (same result); with
+    ``repeats`` > 1 the evaluation is repeated with seeds ``seed + 1``, ..., the result
+    being the first seed's with their summary under ``"repeats"``
+    (:func:`autonomy.evaluation.summarise_repeats`).
+
+    Raises
+    ------
+    ValueError
+        Unreadable demonstrations or model file (naming the file and field), ``folds``
+        outside [2, number of runs], ``workers`` or ``repeats`` below 1 (checked first,
+        before any demonstrations are recorded).
+    """
+    from study.jobs.demonstrations import load_demonstrations
+    from tasks.contextual import TARGET_KIND
+
+    if workers < 1:
+        raise ValueError(f"workers: must be at least 1, got {workers}")
+    if repeats < 1:
+        raise ValueError(f"repeats: must be at least 1, got {repeats}")
+    settings = EvaluationSettings(folds=folds, seed=seed)
+    model_path = Path(DEFAULT_MODEL if model is None else model)
+    metadata = load_model(model_path).metadata
+    settings = _with_model_recipe(settings, metadata, model_path)
+    if demonstrations is None:
+        demonstrations, _ = cached_demonstrations(
+            metadata.get("data_sha256"), where=str(model_path)
+        )
+    demos = load_demonstrations(demonstrations)
+    with contextlib.ExitStack() as stack:
+        map_fn = map
+        if workers > 1:
+            from study._blas import limit_blas_threads
+
+            ctx = multiprocessing.get_context("spawn")
+            pool = cf.ProcessPoolExecutor(workers, mp_context=ctx, initializer=limit_blas_threads)
+            map_fn = stack.enter_context(pool).map
+        results = [
+            evaluate(
+                demos,
+                kinds=TARGET_KIND,
+                settings=replace(settings, seed=seed + i),
+                model=str(model_path),
+                where=str(demonstrations),
+                map_fn=map_fn,
+            )
+            for i in range(repeats)
+        ]
+    result = results[0]
+    if repeats > 1:
+        result["repeats"] = summarise_repeats(results)
+    return result
+
+
+def _with_model_recipe(
+    settings: EvaluationSettings, metadata: dict[str, Any], model_path: Path
+) -> EvaluationSettings:
+    """``settings`` with the model's training settings (``metadata["settings"]``) named
+    in ``_FROM_MODEL``; a bad value is a ValueError naming ``model_path``."""
+    recipe = metadata.get("settings", {})
+    overrides = {
+        name: recipe[name]
+        for name in _FROM_MODEL
+        if name in recipe and isinstance(recipe[name], int | float)
+    }
+    try:
+        return replace(settings, **overrides)
+    except ValueError as error:
+        raise ValueError(f"{model_path}: field 'metadata.settings': {error}") from None

@@ -1,0 +1,49 @@
+"""The training job behind ``asa train`` (thesis Sec. 6.2, 7.4.1; issue 3,
+"Demonstrations and training"): recorded demonstrations in, a model file out."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from autonomy.model import ContextualModel, save_model
+from autonomy.training import TrainSettings, train
+
+
+def train_model(
+    demonstrations: str | Path,
+    out: str | Path,
+    *,
+    seed: int = 0,
+    settings: TrainSettings | None = None,
+) -> ContextualModel:
+    """Train on the moving ticks of the demonstrations in ``demonstrations``
+    (:func:`autonomy.training.train`) and save the model to ``out``.
+
+    The same demonstrations and ``seed`` reproduce the same model (arrays identical; only
+    the creation date in the metadata differs), which is how the shipped model
+    ``autonomy/models/default.npz`` is checked (``autonomy/models/README.md``).
+
+    Raises
+    ------
+    ValueError
+        For unreadable demonstrations (naming the file and field), too few points, or an
+        ``out`` that is a directory.
+    """
+    from study.jobs.demonstrations import load_demonstrations
+
+    demos = load_demonstrations(demonstrations)
+    if len(demos) == 0:
+        raise ValueError(f"{demonstrations}: no moving ticks in these demonstrations")
+    out = Path(out)
+    if out.exists() and out.is_dir():
+        raise ValueError(f"{out}: out must be a file path (e.g. model.npz), not a directory")
+    model = train(
+        demos.q,
+        seed=seed,
+        settings=settings,
+        task=demos.task,
+        run=demos.run,
+        source=Path(demonstrations).name,
+    )
+    save_model(model, out)
+    return model
