@@ -28,7 +28,7 @@ from autonomy.modes import register, settings_from
 from autonomy.safety import safe_command
 from autonomy.sogp_classifier import argmax_finite
 from autonomy.tracking import TrackingSettings, track
-from autonomy.types import EMPTY_PATH, Assist, RobotModel
+from autonomy.types import EMPTY_PATH, Assist, Candidates, RobotModel, as_candidates
 
 
 @dataclass(frozen=True, slots=True)
@@ -223,9 +223,8 @@ def _target_geometry(component: Any) -> tuple[np.ndarray | None, float, float]:
     """How the rollout sees ``component``'s target: an object's or wall's surface points
     (p, 2) [m], robot frame, whose nearest to the rolled-out pose is the target, else
     None and the fixed target point ``(s0x, s0y)`` [m]."""
-    kind = getattr(component, "kind", "")
-    pts = np.asarray(getattr(component, "points", np.zeros((0, 2))), dtype=float).reshape(-1, 2)
-    points = pts if kind in ("object", "wall") and len(pts) else None
+    pts = np.asarray(component.points, dtype=float).reshape(-1, 2)
+    points = pts if component.kind in ("object", "wall") and len(pts) else None
     if points is None:
         s0 = np.asarray(component.target_point(), dtype=float)
         return None, float(s0[0]), float(s0[1])
@@ -317,19 +316,12 @@ def rollout(
 # --------------------------------------------------------------------------- the mode
 
 
-def _nearest_candidates(components: Any, n: int) -> tuple[Any, np.ndarray, np.ndarray]:
-    """The ``n`` components whose target points are nearest the robot (Sec. 5.1, 6.1):
-    (the components, indexable; their target points (p, 2) [m]; the chosen indices,
-    nearest first, ties by order). All target points come in one call where the
-    sequence offers it (``sim.semantics.RobotFrameComponents``)."""
-    many = getattr(components, "target_points", None)
-    if callable(many):
-        targets = np.asarray(many(), dtype=float).reshape(-1, 2)
-    else:
-        components = tuple(components)
-        targets = np.array([np.asarray(c.target_point(), dtype=float) for c in components])
+def _nearest_candidates(candidates: Candidates, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The ``n`` candidates whose target points are nearest the robot (Sec. 5.1, 6.1):
+    (all target points (p, 2) [m]; the chosen indices, nearest first, ties by order)."""
+    targets = np.asarray(candidates.target_points(), dtype=float).reshape(-1, 2)
     order = np.argsort(np.einsum("ij,ij->i", targets, targets), kind="stable")
-    return components, targets, order[:n]
+    return targets, order[:n]
 
 
 _RUNTIMES: dict[tuple, Runtime] = {}
@@ -429,7 +421,8 @@ class ContextualTaskMode:
 
         Parameters
         ----------
-        obs : observation with ``points`` (m, 2) [m] and ``components`` (robot frame).
+        obs : observation with ``points`` (m, 2) [m] and ``components`` (robot frame,
+            :class:`autonomy.types.Candidates` or a sequence of components).
         u : (3,) joystick command (v_x [m/s], v_y [m/s], omega [rad/s]).
         """
         if self.robot_ is None:
@@ -438,16 +431,15 @@ class ContextualTaskMode:
         s, robot, rt = self.settings, self.robot_, self.runtime_
         u = np.array(u, dtype=float).reshape(3)
         points = np.asarray(obs.points, dtype=float).reshape(-1, 2)
-        components = getattr(obs, "components", None)
-        if components is None:
-            components = ()
+        components = obs.components
         limit = np.array([robot.max_speed, robot.max_speed, robot.max_yaw_rate])
         u_norm = u / limit
         if rt is None or not len(components) or math.hypot(u_norm[0], u_norm[1]) < s.min_input:
             return self._manual(u, points, start, time.perf_counter())
 
         # 1. candidates: the nearest components by target point
-        components, targets, chosen = _nearest_candidates(components, s.candidates)
+        components = as_candidates(components)
+        targets, chosen = _nearest_candidates(components, s.candidates)
         # 2. q* per candidate, encoded and standardised
         q = task_features(targets[chosen], u_norm)
         Z = rt.model.scaler.transform(encode(q))

@@ -1,6 +1,7 @@
 """Plain value types of the assistance layer: what a mode knows about the robot
-(:class:`RobotModel`), what it returns every tick (:class:`Assist`), and the
-interface every mode implements (:class:`Mode`).
+(:class:`RobotModel`), what it returns every tick (:class:`Assist`), the semantic
+components it may take as the operator's target (:class:`Component`,
+:class:`Candidates`), and the interface every mode implements (:class:`Mode`).
 
 A mode sees observations by duck typing (``obs.t``, ``obs.pose``,
 ``obs.velocity``, ``obs.points``, ``obs.scans``, ``obs.components``; see
@@ -20,6 +21,7 @@ assistance layer, is derived once here so that the 20 Hz tick does not redo it.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any, Protocol, runtime_checkable
 
@@ -140,6 +142,64 @@ class Assist:
     scores: dict[str, float]  # situation posteriors and diagnostics, or per-candidate scores
     predicted_path: np.ndarray  # (k, 3) robot-frame poses (x [m], y [m], yaw [rad]); (0, 3)
     timings_ms: dict[str, float]  # [ms] per stage, "total" included
+
+
+class Component(Protocol):
+    """A semantic component as a mode sees it, in the robot frame (thesis Sec. 5.1, 6.1).
+
+    ``sim.types.SemanticComponent`` is one; a real robot's map may supply its own.
+    """
+
+    id: str
+    kind: str  # "doorway", "gap", "dock", "object" or "wall"
+    points: np.ndarray  # (k, 2) [m] surface points (objects, walls); a passage's ends
+
+    def target_point(self) -> np.ndarray:
+        """The intentional target point ``s`` (2,) [m]: a passage's or the dock's centre,
+        the surface point of an object or wall nearest the robot."""
+        ...
+
+
+@runtime_checkable
+class Candidates(Protocol):
+    """The components a contextual mode chooses its target from (robot frame): indexable,
+    with every target point in one call. ``sim.semantics.RobotFrameComponents`` (what
+    ``World.sense`` hands out) is one; :func:`as_candidates` makes one of any sequence."""
+
+    def __len__(self) -> int: ...
+
+    def __getitem__(self, index: int) -> Component: ...
+
+    def target_points(self) -> np.ndarray:
+        """Every component's target point ``s`` (n, 2) [m], in index order."""
+        ...
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class ComponentList:
+    """:class:`Candidates` made of a plain sequence of components."""
+
+    items: tuple[Component, ...]
+    targets: np.ndarray  # (n, 2) [m] the items' target points
+
+    def __len__(self) -> int:
+        return len(self.items)
+
+    def __getitem__(self, index: int) -> Component:
+        return self.items[index]
+
+    def target_points(self) -> np.ndarray:
+        return self.targets
+
+
+def as_candidates(components: Candidates | Sequence[Component]) -> Candidates:
+    """``components`` as :class:`Candidates`: itself if it is one, else a
+    :class:`ComponentList` of its items with their target points (n, 2) [m]."""
+    if isinstance(components, Candidates):
+        return components
+    items = tuple(components)
+    targets = np.array([np.asarray(c.target_point(), dtype=float) for c in items])
+    return ComponentList(items, targets.reshape(-1, 2))
 
 
 @runtime_checkable
