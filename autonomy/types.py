@@ -193,9 +193,11 @@ class ComponentList:
 
 
 def as_candidates(components: Candidates | Sequence[Component]) -> Candidates:
-    """``components`` as :class:`Candidates`: itself if it is one, else a
-    :class:`ComponentList` of its items with their target points (n, 2) [m]."""
-    if isinstance(components, Candidates):
+    """``components`` as :class:`Candidates`: a tuple or list of components becomes a
+    :class:`ComponentList` of its items with their target points (n, 2) [m]; anything
+    else is taken as :class:`Candidates` already (a per-tick call: the Protocol's own
+    ``isinstance`` check would cost about 10 us)."""
+    if not isinstance(components, tuple | list):
         return components
     items = tuple(components)
     targets = np.array([np.asarray(c.target_point(), dtype=float) for c in items])
