@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 from sqlalchemy.engine import Engine
 
-from autonomy.types import Assist, RobotModel
+from autonomy.types import Assist, Mode, RobotModel
 from sim.occupancy import OccupancyGrid
 from sim.scenario import Scenario, point_in_region
 from sim.types import Contact, Pose2D, SemanticComponent
@@ -27,6 +27,7 @@ from sim.world import World
 from study.data.recording import TrialRecorder
 from study.engine.clocks import DT, ExperimenterControl, FreeClock, WallClock
 from study.engine.events import EventSink, TrialWriter, jsonable
+from study.participants.base import Participant
 from study.types import ParticipantInput, ScreenState, TickRecord, TrialInfo
 from tasks.geometry import footprint_clearance
 from tasks.primary import PrimarySettings, PrimaryTask
@@ -143,8 +144,8 @@ class TrialLoop:
         spec: TrialSpec,
         *,
         scene: Scene,
-        participant: Any,
-        mode: Any | None,
+        participant: Participant,
+        mode: Mode | None,
         trial_values: dict[str, Any],
         recording_dir: Path,
         recording_rel: Callable[[int], str],
@@ -458,8 +459,8 @@ def run_trial(
     spec: TrialSpec,
     *,
     scene: Scene,
-    participant: Any,
-    mode: Any | None,
+    participant: Participant,
+    mode: Mode | None,
     trial_values: dict[str, Any],
     recording_dir: Path,
     recording_rel: Callable[[int], str],
