@@ -679,3 +679,14 @@ def test_repeated_measures_orders_by_first_appearance(rng):
     assert data.levels == ("b", "a", "c")
     assert data.subjects == ("w", "x", "y", "z")
     assert np.allclose(data.y, y[::-1, ::-1])
+
+
+def test_repeated_cells_are_averaged_and_named_in_the_note(rng):
+    y = random_design(rng, 4, 3)
+    frame = to_long(y, levels=["a", "b", "c"], subjects=["p1", "p2", "p3", "p4"])
+    extra = frame.iloc[[0]].assign(y=frame["y"].iloc[0] + 2.0)
+    data = repeated_measures(pd.concat([frame, extra], ignore_index=True), **COLUMNS)
+    who, level = extra["pid"].iloc[0], extra["mode"].iloc[0]
+    assert np.isclose(data.y[0, 0], y[0, 0] + 1.0)  # the mean of the cell's two rows
+    (note,) = [n for n in data.warnings if "more than one row" in n]
+    assert f"subject {who!r}, level {level!r}: 2 rows" in note

@@ -116,11 +116,11 @@ def _repeated_cells_note(long: pd.DataFrame) -> list[str]:
     repeated = rows_per_cell[rows_per_cell > 1]
     if not len(repeated):
         return []
-    (who, where), count = next(iter(repeated.items())), int(repeated.iloc[0])
+    (who, where), count = next(iter(repeated.items()))
     return [
         f"{len(repeated)} (subject, level) cell(s) had more than one row; each was "
         f"replaced by the mean of its rows (e.g. subject {who!r}, level {where!r}: "
-        f"{count} rows)"
+        f"{int(count)} rows)"
     ]
 
 
