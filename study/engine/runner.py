@@ -194,15 +194,17 @@ class SessionRunner:
         self, kind: str, responses: Sequence[Response] = (), *, skipped: str = ""
     ) -> None:
         detail = {"phase": kind, **({"skipped": skipped} if skipped else {})}
+        self._store(responses, "phase_done", detail)
+
+    def _store(
+        self, rows: Sequence[Response], kind: str, detail: dict, trial_id: int | None = None
+    ) -> None:
+        """``rows`` and one event of this session (at ``t = 0``) in one transaction."""
         with Session(self.engine) as s, s.begin():
-            s.add_all(responses)
+            s.add_all(rows)
             s.add(
                 Event(
-                    session_id=self.session_id,
-                    trial_id=None,
-                    t=0.0,
-                    kind="phase_done",
-                    detail=detail,
+                    session_id=self.session_id, trial_id=trial_id, t=0.0, kind=kind, detail=detail
                 )
             )
 
@@ -442,17 +444,7 @@ class SessionRunner:
                 row = self._response(nasa_tlx.INSTRUMENT_ID, f"pair:{a}|{b}", None, trial_id)
                 row.text = chosen[tuple(sorted((a, b)))]
                 rows.append(row)
-        with Session(self.engine) as s, s.begin():
-            s.add_all(rows)
-            s.add(
-                Event(
-                    session_id=self.session_id,
-                    trial_id=trial_id,
-                    t=0.0,
-                    kind="questionnaire_done",
-                    detail={"instrument": after.instrument},
-                )
-            )
+        self._store(rows, "questionnaire_done", {"instrument": after.instrument}, trial_id)
         self.progress(f"{self.code} NASA-TLX after main #{ordinal}: {len(rows)} answers")
 
     def debrief(self, phase: Debrief) -> bool:

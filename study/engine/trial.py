@@ -508,7 +508,6 @@ def run_trial(
     -------
     TrialResult
     """
-    clock = clock if clock is not None else FreeClock()
     loop = TrialLoop(
         engine,
         spec,
