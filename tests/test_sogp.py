@@ -350,7 +350,8 @@ def test_fit_hyperparameters_improves_the_evidence(rng):
     X = rng.uniform(-2.0, 2.0, size=(120, 2))
     y = np.sin(2.0 * X[:, 0]) + 0.1 * rng.normal(size=120)
     # a wide length-scale cap (the default 0.5 std is for the recogniser, see sogp.py)
-    ls, sf2, sn2 = fit_hyperparameters(X, y, rng=rng, restarts=2, max_length_scale=100.0)
+    hp = fit_hyperparameters(X, y, rng=rng, restarts=2, max_length_scale=100.0)
+    ls, sf2, sn2 = hp.length_scales, hp.signal_var, hp.noise_var
     theta = np.log(np.r_[ls, sf2, sn2])
     start = initial_log_params(X, y)
     assert log_evidence(theta, X, y)[0] >= log_evidence(start, X, y)[0]
@@ -494,7 +495,7 @@ def test_default_length_scale_cap_is_half_a_standard_deviation(rng):
     # demonstrated target won 5-20 % of the ticks; the cap must stay short (sogp.py).
     X = rng.normal(size=(80, 3)) * np.array([1.0, 5.0, 0.2])
     y = np.sign(X[:, 0])
-    ls, _, _ = fit_hyperparameters(X, y, rng=rng, restarts=1)
+    ls = fit_hyperparameters(X, y, rng=rng, restarts=1).length_scales
     assert np.all(ls <= 0.5 * X.std(axis=0) * (1 + 1e-9))
     for (_lo, hi), sd in zip(hyperparameter_bounds(X, y)[:3], X.std(axis=0), strict=True):
         assert np.exp(hi) == pytest.approx(0.5 * sd)
