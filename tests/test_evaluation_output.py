@@ -178,7 +178,7 @@ def test_repeats_give_mean_and_sd_of_acr_and_micad(traced, rng):
             assert rep[f"{key}_sd"][m] == pytest.approx(abs(pair[0] - pair[1]) / np.sqrt(2))
     assert rep["sogp_entropy_rank"] == entropy_rank(rep["introspection_entropy_mean"])
     text = format_report({**first, "repeats": rep})
-    assert "over 2 seeds" in text and "ACR" in text and "H unseen" in text
+    assert "over 2 seeds" in text and "ACR" in text and "entropy unseen" in text
 
 
 @pytest.fixture(scope="module")

@@ -43,11 +43,10 @@ def _correspondence_lines(result: Mapping[str, Any]) -> list[str]:
     """ACR and MICAD on held-out runs (Sec. 7.4.1, Tables 7.7-7.8)."""
     n_runs = len(result["correspondence_rates"][METHODS[0]])
     return [
-        f"correspondence on {n_runs} held-out runs (Sec. 7.4.1, Tables 7.7-7.8): ACR, the "
-        "mean over runs of the share of",
-        "test ticks whose most probable component (Eq. 5.8) is the target; MICAD, the mean "
-        "distance of the winning",
-        "feature to the training points of its assigned task type [standardised units]",
+        f"correspondence on {n_runs} held-out runs (Sec. 7.4.1, Tables 7.7-7.8)",
+        "ACR: mean over runs of the share of test ticks whose most probable component",
+        "(Eq. 5.8) is the target; MICAD: mean distance of the winning feature to the",
+        "training points of its assigned task type [standardised units]",
         _header(8),
         "ACR     " + "".join(_num(result["acr"][m]) for m in METHODS),
         "MICAD   " + "".join(_num(result["micad"][m]) for m in METHODS),
@@ -96,7 +95,10 @@ def _repeat_lines(rep: Mapping[str, Any], labels: list[str], width: int) -> list
         lines.append(f"{c:<{width}}{cells}{rep['sogp_at_least_baselines'][c]:9.2f}")
     rows = [("ACR", "acr"), ("MICAD", "micad")]
     if rep["introspection_entropy_mean"]:
-        rows += [("H unseen", "introspection_entropy"), ("MICAD unseen", "introspection_micad")]
+        rows += [
+            ("entropy unseen", "introspection_entropy"),
+            ("MICAD unseen", "introspection_micad"),
+        ]
     for name, key in rows:
         mean, sd = rep[f"{key}_mean"], rep[f"{key}_sd"]
         cells = "".join(
@@ -112,7 +114,7 @@ def format_report(result: Mapping[str, Any]) -> str:
     """Human-readable tables of :func:`autonomy.evaluation.evaluate`'s result (with its
     ``"repeats"`` summary, if any)."""
     labels = list(result["labels"])
-    width = max(len(x) for x in [*labels, "macro", "MICAD unseen"]) + 2
+    width = max(len(x) for x in [*labels, "macro", "entropy unseen"]) + 2
     lines = [
         f"{result['n_runs']} runs, {result['folds']}-fold cross-validation by run, seed "
         f"{result['seed']}; {result['n_test_ticks']} test ticks; model {result['model'] or '-'}",
