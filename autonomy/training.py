@@ -36,7 +36,7 @@ class TrainSettings:
     hyper_restarts: int = 2  # L-BFGS-B runs per cluster
     gmr_k: int = 10  # neighbours of the fast online GMR (thesis Sec. 7.4.4)
     covariance_reg: float = 1e-2  # added to the primitives' covariance diagonal (std. units)
-    max_length_scale: float = MAX_LENGTH_SCALE  # SOGP length-scale cap (std. units)
+    max_length_scale: float = MAX_LENGTH_SCALE  # SOGP length-scale bound (std. units)
     candidates: int = 10  # nearest components a tick's hard negatives come from (the mode's)
     negatives_per_tick: int = 2  # other candidates per way point, target -1 in every GP
     refine: bool = True  # re-estimate each GP on its basis after the online pass
