@@ -99,3 +99,19 @@ def test_a_manual_trial_scores_no_recognition(tmp_path, rng):
     )
     engine.dispose()
     assert "recognition" not in result.outcome and "label_tasks" not in result.outcome
+
+
+def test_the_recognition_bench_pools_its_scenes_and_checks_the_aims():
+    from study.bench.budgets import check_budgets
+    from study.bench.recognition import drivable_scenes, run
+
+    assert {"cluttered_room", "demo_docking"} <= set(drivable_scenes())
+    figures = run(quick=True, scenes=["demo_docking"])
+    scene = figures["loop_per_scene"]["demo_docking"]
+    assert figures["labelled_ticks"] == scene["labelled_ticks"] > 0
+    assert sum(c["labelled_ticks"] for c in figures["loop_per_task"].values()) == scene[
+        "labelled_ticks"
+    ]
+    assert 0.0 <= figures["loop_task_target_match"] <= figures["loop_task_match"] <= 1.0
+    budgets = check_budgets(figures, ["recognition"])
+    assert {b["value"] for b in budgets.values()} >= {figures["loop_task_match"]}
