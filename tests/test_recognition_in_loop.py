@@ -109,9 +109,10 @@ def test_the_recognition_bench_pools_its_scenes_and_checks_the_aims():
     figures = run(quick=True, scenes=["demo_docking"])
     scene = figures["loop_per_scene"]["demo_docking"]
     assert figures["labelled_ticks"] == scene["labelled_ticks"] > 0
-    assert sum(c["labelled_ticks"] for c in figures["loop_per_task"].values()) == scene[
-        "labelled_ticks"
-    ]
+    assert (
+        sum(c["labelled_ticks"] for c in figures["loop_per_task"].values())
+        == scene["labelled_ticks"]
+    )
     assert 0.0 <= figures["loop_task_target_match"] <= figures["loop_task_match"] <= 1.0
     budgets = check_budgets(figures, ["recognition"])
     assert {b["value"] for b in budgets.values()} >= {figures["loop_task_match"]}

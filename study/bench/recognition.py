@@ -96,9 +96,7 @@ def run(
     per_scene: dict[str, Any] = {}
     with tempfile.TemporaryDirectory(prefix="asa-bench-rec-") as tmp:
         for scene in scenes:
-            tally, completed = scene_recognition(
-                Path(tmp), scene, drivers, _SEED, mode_settings
-            )
+            tally, completed = scene_recognition(Path(tmp), scene, drivers, _SEED, mode_settings)
             s = tally.summary()
             s.pop("per_task")
             s["completed"] = round(sum(completed) / len(completed), 4)
