@@ -127,8 +127,10 @@ def run(quick: bool) -> dict:
         - ``contextual_tick_ms`` {p50, p95, p99, candidates}: one ``contextual_task``
           tick (candidates, recognition, the Alg. 3 rollout, tracking, blending, the
           safety layer) with ``candidates`` = 10 semantic components per tick;
-          ``rollout_ms`` {p50, p95}: the rollout alone; ``contextual_stage_ms``: the
-          mean of each stage of ``Assist.timings_ms``; ``contextual_recognised_share``;
+          ``rollout_ms`` {p50, p95, p99}: the rollout alone; ``rollout_steps_mean``: the
+          mean number of predicted poses over the ticks with a rollout;
+          ``contextual_stage_ms``: the mean of each stage of ``Assist.timings_ms``;
+          ``contextual_recognised_share``;
           ``contextual_model``: "shipped", or "synthetic" when the shipped model is
           missing.
     """
@@ -216,7 +218,7 @@ def _contextual_figures(observations: list, robot: RobotModel, n: int) -> dict:
             extra = _synthetic_components(rng, CONTEXTUAL_CANDIDATES - len(comps))
             obs = dataclasses.replace(obs, components=comps + extra)
         prepared.append((obs, u))
-    tick, roll, assisted = [], [], 0
+    tick, roll, steps, assisted = [], [], [], 0
     stages: dict[str, list[float]] = {}
     repeats = max(1, n // len(prepared))
     for k in range(repeats * len(prepared)):
@@ -228,12 +230,15 @@ def _contextual_figures(observations: list, robot: RobotModel, n: int) -> dict:
         for stage, ms in assist.timings_ms.items():
             stages.setdefault(stage, []).append(ms)
         assisted += assist.target != ""  # below min_input the mode does not recognise
+        if assist.target != "":
+            steps.append(len(assist.predicted_path))
     return {
         "contextual_tick_ms": {
             **_percentiles(tick, (50, 95, 99)),
             "candidates": CONTEXTUAL_CANDIDATES,
         },
-        "rollout_ms": _percentiles(roll, (50, 95)),
+        "rollout_ms": _percentiles(roll, (50, 95, 99)),
+        "rollout_steps_mean": round(float(np.mean(steps)), 2) if steps else 0.0,
         "contextual_stage_ms": {k: round(float(np.mean(v)), 4) for k, v in stages.items()},
         "contextual_recognised_share": round(assisted / max(len(tick), 1), 3),
         "contextual_model": which,
