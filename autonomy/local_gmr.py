@@ -224,8 +224,9 @@ class LocalGMR:
         self.inputs_ = np.ascontiguousarray(self.points_[:, list(GMR_INPUT)])  # (N, 2) [m]
         self.pool_size = min(POOL_FACTOR * self.k, len(self.points_))
         self._phi = _features(self.k, self.points_.shape[1])  # work array of the fits
-        self._query = np.empty(2)  # the kNN query, reused (a tuple costs a conversion)
-        self._pool: tuple | None = None  # (centre x, y [m], radius [m], indices, inputs)
+        self._query = np.ones(3)  # work arrays of the kNN search
+        self._centre = np.empty(2)
+        self._pool: tuple | None = None  # (centre x, y [m], radius [m], indices, see _key)
 
     def _key(self, sx: float, sy: float) -> bytes:
         """The sorted indices of the ``k`` points nearest ``(sx, sy)`` (Alg. 2), as bytes.
@@ -235,26 +236,31 @@ class LocalGMR:
         k-th nearest pool point lies closer than ``radius - |q - c|``, every point outside
         the pool is farther. Else the pool is fetched anew around ``q`` from the tree.
         """
-        k, q = self.k, self._query
-        q[0], q[1] = sx, sy
+        k = self.k
         if self._pool is not None:
-            cx, cy, radius, idx, inputs = self._pool
-            margin = radius - math.hypot(sx - cx, sy - cy)
+            cx, cy, radius, idx, rel = self._pool
+            dx, dy = sx - cx, sy - cy
+            margin = radius - math.hypot(dx, dy)
             if margin > 0.0:
-                d = inputs - q
-                d2 = np.einsum("ij,ij->i", d, d)
-                part = np.argpartition(d2, k - 1)
-                if d2[part[k - 1]] < margin * margin:
-                    near = idx[part[:k]]
+                q = self._query  # |p - q|^2 = |p - c|^2 - 2 (p - c).(q - c) + |q - c|^2
+                q[0], q[1] = -2.0 * dx, -2.0 * dy
+                d2 = rel.dot(q)  # (P,), up to |q - c|^2
+                part = d2.argpartition(k - 1)
+                if d2.item(part.item(k - 1)) + (dx * dx + dy * dy) < margin * margin:
+                    near = idx.take(part[:k])
                     near.sort()
                     return near.tobytes()
-        dist, idx = self.tree_.query(q, k=self.pool_size)
-        dist, idx = np.atleast_1d(dist), np.atleast_1d(idx)
-        radius = math.inf if self.pool_size == len(self.inputs_) else float(dist[-1])
-        self._pool = (sx, sy, radius, idx, self.inputs_[idx])
-        near = idx[:k].copy()
-        near.sort()
-        return near.tobytes()
+        c = self._centre
+        c[0], c[1] = sx, sy
+        dist, idx = self.tree_.query(c, k=self.pool_size)
+        if self.pool_size == 1:
+            dist, idx = np.atleast_1d(dist), np.atleast_1d(idx)
+        radius = math.inf if self.pool_size == len(self.inputs_) else dist.item(-1)
+        rel = np.empty((len(idx), 3))  # (p - c, |p - c|^2)
+        np.subtract(self.inputs_.take(idx, axis=0), c, out=rel[:, :2])
+        np.einsum("ij,ij->i", rel[:, :2], rel[:, :2], out=rel[:, 2])
+        self._pool = (sx, sy, radius, idx, rel)
+        return np.sort(idx[:k]).tobytes()
 
     def _terms(self, key: bytes) -> tuple[tuple[float, ...], ...]:
         """The local fit of the neighbour set ``key`` as per-component constants of
