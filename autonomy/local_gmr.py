@@ -20,6 +20,7 @@ EM_MAX_ITER = 100  # EM iterations at most
 _LOG_2PI = math.log(2.0 * math.pi)
 _NK_EPS = 1e-12  # added to a component's responsibility sum (an empty component)
 POOL_FACTOR = 10  # the kNN search's pool: POOL_FACTOR * k points
+POOLS = 16  # pools kept
 
 
 class LocalMixture(NamedTuple):
@@ -226,7 +227,7 @@ class LocalGMR:
         self._phi = np.ones((self.k, 11))  # work array of the fits: (x, x^2, 1)
         self._query = np.ones(3)  # work arrays of the kNN search
         self._centre = np.empty(2)
-        self._pool: tuple | None = None  # (centre x, y [m], radius [m], indices, see _key)
+        self._pools: list[tuple] = []  # (centre x, y [m], radius [m], indices, see _key)
 
     def _key(self, sx: float, sy: float) -> bytes:
         """The sorted indices of the ``k`` points nearest ``(sx, sy)`` (Alg. 2), as bytes.
@@ -234,11 +235,12 @@ class LocalGMR:
         Searched by brute force among a pool, the ``pool_size`` points nearest an earlier
         query ``c`` (every point within ``radius`` of it), when that is exact: when the
         k-th nearest pool point lies closer than ``radius - |q - c|``, every point outside
-        the pool is farther. Else the pool is fetched anew around ``q`` from the tree.
+        the pool is farther. The last ``POOLS`` pools are kept (a rollout starts near
+        where the previous one started); without one that answers, a pool is fetched
+        around ``q`` from the tree.
         """
-        k = self.k
-        if self._pool is not None:
-            cx, cy, radius, idx, rel = self._pool
+        k, pools = self.k, self._pools
+        for n, (cx, cy, radius, idx, rel) in enumerate(pools):
             dx, dy = sx - cx, sy - cy
             margin = radius - math.hypot(dx, dy)
             if margin > 0.0:
@@ -247,6 +249,8 @@ class LocalGMR:
                 d2 = rel.dot(q)  # (P,), up to |q - c|^2
                 part = d2.argpartition(k - 1)
                 if d2.item(part.item(k - 1)) + (dx * dx + dy * dy) < margin * margin:
+                    if n:
+                        pools.insert(0, pools.pop(n))
                     near = idx.take(part[:k])
                     near.sort()
                     return near.tobytes()
@@ -259,7 +263,8 @@ class LocalGMR:
         rel = np.empty((len(idx), 3))  # (p - c, |p - c|^2)
         np.subtract(self.inputs_.take(idx, axis=0), c, out=rel[:, :2])
         np.einsum("ij,ij->i", rel[:, :2], rel[:, :2], out=rel[:, 2])
-        self._pool = (sx, sy, radius, idx, rel)
+        pools.insert(0, (sx, sy, radius, idx, rel))
+        del pools[POOLS:]
         return np.sort(idx[:k]).tobytes()
 
     def _terms(self, key: bytes) -> tuple[tuple[float, ...], ...]:

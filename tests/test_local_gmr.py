@@ -133,10 +133,11 @@ def test_pooled_neighbour_search_equals_brute_force(rng):
     data = np.column_stack((rng.uniform(-2, 2, (400, 2)), rng.normal(size=(400, 3))))
     for k in (1, 3, 10, 40):
         local = LocalGMR(data, k=k)
-        x = rng.uniform(-2.5, 2.5, 2)
-        for _ in range(200):
-            step = 0.02 if rng.random() < 0.9 else 1.5  # a walk, now and then a jump
-            x = x + rng.normal(scale=step, size=2)
+        start = x = rng.uniform(-2.5, 2.5, 2)
+        for _ in range(300):
+            draw = rng.random()  # a walk, now and then a jump, or back to its start
+            x = start + rng.normal(scale=0.02, size=2) if draw > 0.95 else x
+            x = x + rng.normal(scale=0.02 if draw < 0.9 else 1.5, size=2)
             got = np.frombuffer(local._key(float(x[0]), float(x[1])), dtype=np.intp)
             d2 = ((data[:, :2] - x) ** 2).sum(axis=1)
             expected = np.sort(np.argsort(d2, kind="stable")[:k])
