@@ -273,26 +273,25 @@ def rollout(
         one above the threshold unless the cap ended the loop).
     """
     j = runtime.row[int(cluster)]
-    gmr, A = runtime.gmrs[j], runtime.mahalanobis[j]  # e = W ((z - mean_) / scale_ - mu)
-    dot = np.dot
+    gmr = runtime.gmrs[j]
+    # e = W ((z - mean_) / scale_ - mu) = A (z, 1), row by row in scalar arithmetic
+    rows = runtime.mahalanobis[j].tolist()
     points, s0x, s0y = _target_geometry(component)
-    if points is not None:
-        d = np.empty_like(points)
-        d2 = np.empty(len(points))
-        here = np.empty(2)
+    if points is not None:  # |p - h|^2 - |h|^2 = (p, |p|^2) . (-2 h, 1): one product
+        surface = points.tolist()
+        lifted = np.column_stack((points, np.einsum("ij,ij->i", points, points)))
+        here = np.ones(3)
     lim_v, lim_w = float(robot.max_speed), float(robot.max_yaw_rate)
     dt, stop = settings.dt, settings.mahalanobis_stop
     cos, sin, atan2, hypot, sqrt = math.cos, math.sin, math.atan2, math.hypot, math.sqrt
     x = y = yaw = 0.0
     path, dists = [], []
-    z = np.ones(8)  # (s*, |u| cos, |u| sin, u*, 1)
     for _ in range(settings.rollout_steps):
         # Alg. 3, line 9: s* seen from the rolled-out pose
         if points is not None:
-            here[0], here[1] = x, y
-            np.subtract(points, here, out=d)
-            i = int(np.einsum("ij,ij->i", d, d, out=d2).argmin())
-            dx, dy = float(d[i, 0]), float(d[i, 1])
+            here[0], here[1] = -2.0 * x, -2.0 * y
+            px, py = surface[lifted.dot(here).argmin()]
+            dx, dy = px - x, py - y
         else:
             dx, dy = s0x - x, s0y - y
         c, s = cos(yaw), sin(yaw)
@@ -307,9 +306,11 @@ def rollout(
             ct, st = speed * cos(theta), speed * sin(theta)
         else:
             ct, st = speed, 0.0
-        z[0], z[1], z[2], z[3], z[4], z[5], z[6] = sx, sy, ct, st, ux, uy, uw
-        e = dot(A, z)
-        dist = sqrt(float(dot(e, e)))  # line 12, Eq. (6.3)
+        dist2 = 0.0
+        for a0, a1, a2, a3, a4, a5, a6, a7 in rows:
+            e = a0 * sx + a1 * sy + a2 * ct + a3 * st + a4 * ux + a5 * uy + a6 * uw + a7
+            dist2 += e * e
+        dist = sqrt(dist2)  # line 12, Eq. (6.3)
         dists.append(dist)
         if dist > stop:
             break
