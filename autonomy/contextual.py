@@ -22,7 +22,7 @@ from scipy.special import ndtr
 
 from autonomy.arbitration import blend
 from autonomy.features import encode, task_features
-from autonomy.local_gmr import LocalGMR
+from autonomy.local_gmr import EM_MAX_ITER, EM_TOL, LocalGMR
 from autonomy.model import DEFAULT_MODEL, ContextualModel, load_model
 from autonomy.modes import register, settings_from
 from autonomy.safety import safe_command
@@ -40,8 +40,8 @@ class ContextualSettings:
     candidates: int = 10  # nearest semantic components considered
     rollout_steps: int = 60  # cap of Alg. 3's loop (3 s at dt = 0.05 s)
     gmr_k: int = 10  # neighbours of the fast online GMR (thesis Sec. 7.4.4)
-    em_iters: int = 5  # EM iterations of the local 2-component GMM
-    gmr_every: int = 4  # rollout steps per GMR evaluation (u* held in between; 5 Hz)
+    em_tol: float = EM_TOL  # local EM: stop below this relative change of the log-likelihood
+    em_max_iter: int = EM_MAX_ITER  # local EM iterations at most
     mahalanobis_stop: float = 3.0  # Eq. (6.3) threshold (thesis Sec. 7.4.4)
     min_input: float = 0.05  # |u_xy| (normalised) below which the mode does not assist
     dt: float = 0.05  # [s] rollout step (thesis Sec. 7.4.4)
@@ -58,12 +58,21 @@ class ContextualSettings:
                 "contextual_task setting yield_below_scale: must be a number in [0, 1], got "
                 f"{self.yield_below_scale!r}"
             )
-        for name in ("candidates", "rollout_steps", "gmr_k", "em_iters", "gmr_every"):
+        for name in ("candidates", "rollout_steps", "gmr_k"):
             value = getattr(self, name)
             if not (isinstance(value, int) and value >= 1):
                 raise ValueError(
                     f"contextual_task setting {name}: must be an integer >= 1, got {value!r}"
                 )
+        tol, cap = self.em_tol, self.em_max_iter
+        if isinstance(tol, bool) or not (isinstance(tol, int | float) and 0 <= tol < math.inf):
+            raise ValueError(
+                f"contextual_task setting em_tol: must be a finite number >= 0, got {tol!r}"
+            )
+        if isinstance(cap, bool) or not (isinstance(cap, int) and cap >= 1):
+            raise ValueError(
+                f"contextual_task setting em_max_iter: must be an integer >= 1, got {cap!r}"
+            )
         for name in ("mahalanobis_stop", "dt", "safety_horizon_s", "min_input"):
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
@@ -180,7 +189,12 @@ def build_runtime(model: ContextualModel, settings: ContextualSettings) -> Runti
     eye = np.broadcast_to(np.eye(L.shape[1]), L.shape)
     whiten = np.linalg.solve(L, eye)
     gmrs = tuple(
-        LocalGMR(model.cluster_points(j), k=settings.gmr_k, iters=settings.em_iters)
+        LocalGMR(
+            model.cluster_points(j),
+            k=settings.gmr_k,
+            tol=settings.em_tol,
+            max_iter=settings.em_max_iter,
+        )
         for j in range(model.n_clusters)
     )
     scaler = model.scaler
@@ -260,50 +274,48 @@ def rollout(
         one above the threshold unless the cap ended the loop).
     """
     j = runtime.row[int(cluster)]
-    gmr, A = runtime.gmrs[j], runtime.mahalanobis[j]  # e = W ((z - mean_) / scale_ - mu)
-    dot = np.dot
+    gmr = runtime.gmrs[j]
+    # e = W ((z - mean_) / scale_ - mu) = A (z, 1), row by row in scalar arithmetic
+    rows = runtime.mahalanobis[j].tolist()
     points, s0x, s0y = _target_geometry(component)
-    if points is not None:
-        d = np.empty_like(points)
-        d2 = np.empty(len(points))
-        here = np.empty(2)
+    if points is not None:  # |p - h|^2 - |h|^2 = (p, |p|^2) . (-2 h, 1): one product
+        surface = points.tolist()
+        lifted = np.column_stack((points, np.einsum("ij,ij->i", points, points)))
+        here = np.ones(3)
     lim_v, lim_w = float(robot.max_speed), float(robot.max_yaw_rate)
-    dt, stop, every = settings.dt, settings.mahalanobis_stop, settings.gmr_every
+    dt, stop = settings.dt, settings.mahalanobis_stop
     cos, sin, atan2, hypot, sqrt = math.cos, math.sin, math.atan2, math.hypot, math.sqrt
     x = y = yaw = 0.0
     path, dists = [], []
-    z = np.ones(8)  # (s*, |u| cos, |u| sin, u*, 1)
-    ux = uy = uw = 0.0
-    for step in range(settings.rollout_steps):
+    for _ in range(settings.rollout_steps):
         # Alg. 3, line 9: s* seen from the rolled-out pose
         if points is not None:
-            here[0], here[1] = x, y
-            np.subtract(points, here, out=d)
-            i = int(np.einsum("ij,ij->i", d, d, out=d2).argmin())
-            dx, dy = float(d[i, 0]), float(d[i, 1])
+            here[0], here[1] = -2.0 * x, -2.0 * y
+            px, py = surface[lifted.dot(here).argmin()]
+            dx, dy = px - x, py - y
         else:
             dx, dy = s0x - x, s0y - y
         c, s = cos(yaw), sin(yaw)
         sx, sy = c * dx + s * dy, -s * dx + c * dy
-        if step % every == 0:
-            ux, uy, uw = gmr.predict_xy(sx, sy)  # line 10
-            ux, uy, uw = _clip1(ux), _clip1(uy), _clip1(uw)
-            speed = hypot(ux, uy)
-            heading = atan2(uy, ux)
-            vx, vy, w = ux * lim_v, uy * lim_v, uw * lim_w
+        ux, uy, uw = gmr.predict_xy(sx, sy)  # line 10: the fast online GMR, Alg. 2
+        ux, uy, uw = _clip1(ux), _clip1(uy), _clip1(uw)
+        speed = hypot(ux, uy)
         # line 11: q_est = (s*, theta*, u*), encoded as autonomy.features.encode does:
         # |u_xy| (cos theta, sin theta), (0, 0) without translational input
         if speed >= 1e-6 and hypot(sx, sy) >= 1e-9:
-            theta = heading - atan2(sy, sx)
+            theta = atan2(uy, ux) - atan2(sy, sx)
             ct, st = speed * cos(theta), speed * sin(theta)
         else:
             ct, st = speed, 0.0
-        z[0], z[1], z[2], z[3], z[4], z[5], z[6] = sx, sy, ct, st, ux, uy, uw
-        e = dot(A, z)
-        dist = sqrt(float(dot(e, e)))  # line 12, Eq. (6.3)
+        dist2 = 0.0
+        for a0, a1, a2, a3, a4, a5, a6, a7 in rows:
+            e = a0 * sx + a1 * sy + a2 * ct + a3 * st + a4 * ux + a5 * uy + a6 * uw + a7
+            dist2 += e * e
+        dist = sqrt(dist2)  # line 12, Eq. (6.3)
         dists.append(dist)
         if dist > stop:
             break
+        vx, vy, w = ux * lim_v, uy * lim_v, uw * lim_w
         mid = yaw + 0.5 * w * dt  # line 14: holonomic kinematics, mid-step heading
         c, s = cos(mid), sin(mid)
         x += (c * vx - s * vy) * dt
@@ -338,7 +350,14 @@ def _runtime_for(settings: ContextualSettings) -> Runtime | None:
             f"with `asa train`, see autonomy/models/README.md)"
         )
     stat = path.stat()
-    key = (str(path.resolve()), stat.st_mtime_ns, stat.st_size, settings.gmr_k, settings.em_iters)
+    key = (
+        str(path.resolve()),
+        stat.st_mtime_ns,
+        stat.st_size,
+        settings.gmr_k,
+        settings.em_tol,
+        settings.em_max_iter,
+    )
     runtime = _RUNTIMES.get(key)
     if runtime is None:
         runtime = build_runtime(load_model(path), settings)

@@ -1,13 +1,13 @@
 """The fast online GMR of a motion primitive (thesis Alg. 2, Eqs. 4.5-4.8) in the lean
-form the contextual mode's rollout needs: the k nearest demonstration points, EM for two
-diagonal components from deterministic seeds, and the regression, cached per neighbour
-set. Choices: docs/decisions.md.
+form the contextual mode's rollout (Alg. 3) needs at every step: the k nearest
+demonstration points, a 2-component diagonal GMM fitted to them by EM run to
+convergence, and the regression, cached per neighbour set. Choices: docs/decisions.md.
 """
 
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import NamedTuple
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -15,66 +15,167 @@ from scipy.spatial import cKDTree
 from autonomy.gmr import data_scale
 from autonomy.model import GMR_INPUT
 
+EM_TOL = 1e-4  # relative change of the mean log-likelihood at which EM stops
+EM_MAX_ITER = 100  # EM iterations at most
+_LOG_2PI = math.log(2.0 * math.pi)
+_NK_EPS = 1e-12  # added to a component's responsibility sum (an empty component)
+POOL_FACTOR = 10  # the kNN search's pool: POOL_FACTOR * k points
+POOLS = 16  # pools kept
 
-def local_gmm(local: np.ndarray, *, iters: int, reg: float = 1e-3, scale: np.ndarray | None = None):
-    """EM for 2 diagonal Gaussian components on a small local set, deterministic seeds.
+
+class LocalMixture(NamedTuple):
+    """A fitted local GMM: ``weights`` (K,), ``means`` (K, 5), ``variances`` (K, 5);
+    ``n_iter`` EM iterations run (an M and an E step each; 0 for a single component) and
+    whether the stopping rule was met (``converged``) rather than the iteration cap."""
+
+    weights: np.ndarray
+    means: np.ndarray
+    variances: np.ndarray
+    n_iter: int
+    converged: bool
+
+
+def check_em_settings(tol: float, max_iter: int) -> None:
+    """Raise ValueError unless ``tol`` is a finite number >= 0 and ``max_iter`` an
+    integer >= 1 (the stopping rule of :func:`local_gmm`)."""
+    if isinstance(tol, bool) or not (isinstance(tol, int | float) and 0.0 <= tol < math.inf):
+        raise ValueError(f"tol: must be a finite number >= 0, got {tol!r}")
+    if isinstance(max_iter, bool) or not (isinstance(max_iter, int) and max_iter >= 1):
+        raise ValueError(f"max_iter: must be an integer >= 1, got {max_iter!r}")
+
+
+def _m_step(
+    stats: list[float], k: int, floor: list[float]
+) -> tuple[float, list[float], list[float], list[float]]:
+    """M step of one component from its responsibility-weighted sums ``stats`` =
+    (sum r x (5), sum r x^2 (5), sum r) over the features ``(x, x^2, 1)`` of the five
+    GMR columns (written out per column: this runs some 10^4 times a session).
+
+    Returns its log weight, mean (5,), variance (5,) (floored) and the coefficients
+    (11,) of ``log pi + log N(x; mu, diag var)`` on the features (the next E step):
+    ``(mu / var, -1 / (2 var), log pi - (sum mu^2 / var + log det + 5 log 2 pi) / 2)``.
+    """
+    s0, s1, s2, s3, s4, q0, q1, q2, q3, q4, n = stats
+    f0, f1, f2, f3, f4 = floor
+    nk = n + _NK_EPS
+    inv = 1.0 / nk
+    m0, m1, m2, m3, m4 = s0 * inv, s1 * inv, s2 * inv, s3 * inv, s4 * inv
+    v0, v1, v2 = q0 * inv - m0 * m0, q1 * inv - m1 * m1, q2 * inv - m2 * m2
+    v3, v4 = q3 * inv - m3 * m3, q4 * inv - m4 * m4
+    v0 = (v0 if v0 > 0.0 else 0.0) + f0
+    v1 = (v1 if v1 > 0.0 else 0.0) + f1
+    v2 = (v2 if v2 > 0.0 else 0.0) + f2
+    v3 = (v3 if v3 > 0.0 else 0.0) + f3
+    v4 = (v4 if v4 > 0.0 else 0.0) + f4
+    a0, a1, a2, a3, a4 = m0 / v0, m1 / v1, m2 / v2, m3 / v3, m4 / v4
+    log_w = math.log(nk / k)
+    log_det = math.log(v0) + math.log(v1) + math.log(v2) + math.log(v3) + math.log(v4)
+    quad = m0 * a0 + m1 * a1 + m2 * a2 + m3 * a3 + m4 * a4
+    const = log_w - 0.5 * (quad + log_det + 5.0 * _LOG_2PI)
+    theta = [a0, a1, a2, a3, a4, -0.5 / v0, -0.5 / v1, -0.5 / v2, -0.5 / v3, -0.5 / v4, const]
+    return log_w, [m0, m1, m2, m3, m4], [v0, v1, v2, v3, v4], theta
+
+
+def _em(
+    phi: np.ndarray, resp: np.ndarray, floor: list[float], tol: float, max_iter: int
+) -> tuple[list[tuple], int, bool]:
+    """EM for 2 diagonal components on the features ``phi`` (k, 11) = (x, x^2, 1) from
+    the responsibilities ``resp`` (2, k) of an initial partition.
+
+    An iteration is an M step and an E step, which also gives the mean log-likelihood of
+    the new parameters; EM stops when that changes by less than ``tol`` relative to it
+    (Bishop 2006, Sec. 9.2.2, step 4) or after ``max_iter`` iterations. Returns
+    [(log w, mu, var, E-step coefficients)] per component, the iterations run and
+    whether the stopping rule was met.
+    """
+    k = phi.shape[0]
+    phi_t = phi.T
+    previous = math.nan
+    for it in range(1, max_iter + 1):
+        params = [_m_step(s, k, floor) for s in np.dot(resp, phi).tolist()]  # M step
+        theta = np.array(params[0][3] + params[1][3]).reshape(2, 11)
+        logp = np.dot(theta, phi_t)  # E step, (2, k): log pi_c N(x_i; mu_c, var_c)
+        lse = np.logaddexp(logp[0], logp[1])  # (k,) log sum_c pi_c N(x_i; mu_c, var_c)
+        current = math.fsum(lse.tolist()) / k  # mean log-likelihood
+        if abs(current - previous) < tol * abs(current):
+            return params, it, True
+        if it < max_iter:
+            resp = np.exp(np.subtract(logp, lse, out=logp), out=logp)  # (2, k)
+            previous = current
+    return params, max_iter, False
+
+
+def _fit(
+    local: np.ndarray, floor: list[float], tol: float, max_iter: int, phi: np.ndarray
+) -> tuple[list[tuple], np.ndarray, int, bool]:
+    """:func:`local_gmm` on ``local`` (k, 5) with the variance floor (5,), using the work
+    array ``phi`` (k, 11) whose last column is 1. Returns the components
+    [(log w, mu, var, _)] with ``mu`` relative to the centre (5,), the centre,
+    iterations and convergence."""
+    k = local.shape[0]
+    centre = np.dot(np.full(k, 1.0 / k), local)
+    x = np.subtract(local, centre, out=phi[:, :5])  # centred: better conditioned sums
+    np.multiply(x, x, out=phi[:, 5:10])  # phi = (x, x^2, 1)
+    gram = np.dot(x, x.T).tolist()  # (k, k); |x_i|^2 is the squared distance to the mean
+    sq = [gram[i][i] for i in range(k)]
+    first = sq.index(min(sq))  # seed: the point nearest the mean
+    g = gram[first]
+    d0 = [a + sq[first] - 2.0 * b for a, b in zip(sq, g, strict=True)]
+    second = d0.index(max(d0))  # seed: the point farthest from that one
+    if not d0[second] > 0.0:  # all points coincide: one component
+        var = np.maximum(np.add.reduce(phi[:, 5:10], axis=0) / k, 0.0) + floor
+        return [(0.0, [0.0] * 5, var.tolist(), None)], centre, 0, True
+    g = gram[second]
+    near = [float(a + sq[second] - 2.0 * b < c) for a, b, c in zip(sq, g, d0, strict=True)]
+    resp = np.array([*[1.0 - n for n in near], *near]).reshape(2, k)  # the nearer seed
+    params, n_iter, converged = _em(phi, resp, floor, tol, max_iter)
+    return params, centre, n_iter, converged
+
+
+def local_gmm(
+    local: np.ndarray,
+    *,
+    tol: float = EM_TOL,
+    max_iter: int = EM_MAX_ITER,
+    reg: float = 1e-3,
+    scale: np.ndarray | None = None,
+) -> LocalMixture:
+    """A 2-component diagonal GMM fitted by EM to a small local set (Alg. 2, "EM").
+
+    Deterministic: the seeds are the point nearest the set's mean and the point farthest
+    from that one; EM starts from the partition of the points by the nearer seed (ties
+    to the first), i.e. from that partition's M step (weights, means, variances), and
+    runs until the mean log-likelihood per point changes by less than ``tol`` relative
+    to its value, or ``max_iter`` times.
 
     Parameters
     ----------
     local : numpy.ndarray
-        (k, D) points.
-    iters : int
-        EM iterations.
+        (k, 5) points, the GMR columns ``(s_x, s_y [m], v_x, v_y, omega)``.
+    tol : float
+        Relative tolerance of the stopping rule, >= 0 (0: always ``max_iter``
+        iterations).
+    max_iter : int
+        Iteration cap, >= 1.
     reg : float
         Variance floor relative to ``scale``: ``reg * scale`` is added to every variance.
     scale : numpy.ndarray, optional
-        (D,) per-column scale; default :func:`autonomy.gmr.data_scale` of ``local``.
+        (5,) per-column scale; default :func:`autonomy.gmr.data_scale` of ``local``.
 
     Returns
     -------
-    weights : (K,), means : (K, D), variances : (K, D) with K = 2, or 1 when all points
-    coincide.
-
-    Notes
-    -----
-    Speed (this runs for every new neighbour set of a rollout): the reductions call the
-    ufuncs' ``reduce`` directly (the array methods' wrappers cost more than the sums of
-    10 x 5 numbers), with the same arithmetic, so the fit is bit for bit that of the plain
-    formulation.
+    LocalMixture
+        K = 2 components, or K = 1 (``n_iter`` 0) when all points coincide.
     """
-    k = local.shape[0]
-    add = np.add.reduce
-    floor = reg * (data_scale(local) if scale is None else scale)
-    centre = add(local, axis=0) / k  # = local.mean(axis=0)
-    first = int(add((local - centre) ** 2, axis=1).argmin())
-    d2 = add((local - local[first]) ** 2, axis=1)
-    second = int(d2.argmax())
-    dev = local - add(local, axis=0, keepdims=True) / k
-    var0 = add(dev * dev, axis=0) / k  # = local.var(axis=0)
-    if not d2[second] > 0:
-        return np.ones(1), centre[None, :], (var0 + floor)[None, :]
-    mu = local[[first, second]]
-    var = np.empty((2, local.shape[1]))
-    var[:] = var0 + floor
-    log_w = np.array((-math.log(2.0), -math.log(2.0)))
-    sq = local * local
-    dot = np.dot  # = @ for these 2-D arrays (the same BLAS product), less call overhead
-    for _ in range(iters):
-        prec = 1.0 / var
-        # E step: log pi_c + log N(x; mu_c, diag var_c) up to a constant, (k, 2)
-        logp = (dot(local, (mu * prec).T) - 0.5 * dot(sq, prec.T)) + (
-            log_w - 0.5 * (add(mu * mu * prec, axis=1) + add(np.log(var), axis=1))
-        )
-        # the max and the sum over the 2 components as one elementwise operation each
-        r = np.exp(logp - np.maximum(logp[:, :1], logp[:, 1:]))
-        r /= r[:, :1] + r[:, 1:]
-        nk = add(r, axis=0) + 1e-12  # M step
-        log_w = np.log(nk / k)
-        rt, nkc = r.T, nk[:, None]
-        mu = dot(rt, local) / nkc
-        var = np.maximum(dot(rt, sq) / nkc - mu * mu, 0.0) + floor
-    w = np.exp(log_w)
-    return w, mu, var
+    check_em_settings(tol, max_iter)
+    local = np.asarray(local, dtype=float)
+    if local.ndim != 2 or local.shape[1] != 5 or len(local) < 1:
+        raise ValueError(f"local: must be a non-empty (k, 5) array, got {local.shape}")
+    floor = reg * (data_scale(local) if scale is None else np.asarray(scale, dtype=float))
+    phi = np.ones((len(local), 11))
+    params, centre, n_iter, converged = _fit(local, floor.tolist(), tol, max_iter, phi)
+    log_w, mu, var = (np.array(v, dtype=float) for v in list(zip(*params, strict=True))[:3])
+    return LocalMixture(np.exp(log_w), mu + centre, var, n_iter, converged)
 
 
 class LocalGMR:
@@ -86,77 +187,134 @@ class LocalGMR:
         (N, 5) demonstration points ``(s_x, s_y [m], v_x, v_y, omega)`` of the primitive.
     k : int
         Neighbours per query.
-    iters : int
-        EM iterations of :func:`local_gmm`.
+    tol, max_iter :
+        EM's stopping rule (:func:`local_gmm`).
     cache_size : int
         Local fits kept (cleared when full).
+
+    Attributes
+    ----------
+    n_iter_counts_ : list of int
+        (max_iter + 1,) number of local fits made with each EM iteration count.
     """
 
-    def __init__(self, points: np.ndarray, *, k: int, iters: int, cache_size: int = 50000):
+    def __init__(
+        self,
+        points: np.ndarray,
+        *,
+        k: int,
+        tol: float = EM_TOL,
+        max_iter: int = EM_MAX_ITER,
+        cache_size: int = 50000,
+    ):
+        check_em_settings(tol, max_iter)
         self.points_ = np.asarray(points, dtype=float)
+        if self.points_.ndim != 2 or self.points_.shape[1] != 5 or len(self.points_) < 1:
+            raise ValueError(f"points: must be a non-empty (N, 5) array, got {self.points_.shape}")
+        if isinstance(k, bool) or not (isinstance(k, int | np.integer) and k >= 1):
+            raise ValueError(f"k: must be an integer >= 1, got {k!r}")
         self.scale_ = data_scale(self.points_)  # for the relative variance floor
+        self.floor_ = (1e-3 * self.scale_).tolist()  # as local_gmm's default reg
         self.tree_ = cKDTree(self.points_[:, list(GMR_INPUT)])
         self.k = min(int(k), len(self.points_))
-        self.iters = int(iters)
+        self.tol = tol
+        self.max_iter = max_iter
         self.cache_size = int(cache_size)
-        self.cache_: dict[bytes, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = {}
-        self.terms_: dict[bytes, tuple[tuple[float, ...], ...]] = {}
+        self.cache_: dict[bytes, tuple[tuple[float, ...], ...]] = {}
+        self.n_iter_counts_ = [0] * (max_iter + 1)
+        self.inputs_ = np.ascontiguousarray(self.points_[:, list(GMR_INPUT)])  # (N, 2) [m]
+        self.pool_size = min(POOL_FACTOR * self.k, len(self.points_))
+        self._phi = np.ones((self.k, 11))  # work array of the fits: (x, x^2, 1)
+        self._query = np.ones(3)  # work arrays of the kNN search
+        self._centre = np.empty(2)
+        self._pools: list[tuple] = []  # (centre x, y [m], radius [m], indices, see _key)
 
-    def _key(self, x: Any) -> bytes:
-        _, idx = self.tree_.query(x, k=self.k)  # Alg. 2: nearest neighbours
-        if self.k == 1:
-            idx = np.atleast_1d(np.asarray(idx, dtype=np.intp))
-        idx.sort()
-        return idx.tobytes()
+    def _key(self, sx: float, sy: float) -> bytes:
+        """The sorted indices of the ``k`` points nearest ``(sx, sy)`` (Alg. 2), as bytes.
 
-    def _fit(self, key: bytes):
-        fit = self.cache_.get(key)
-        if fit is None:
+        Searched by brute force among a pool, the ``pool_size`` points nearest an earlier
+        query ``c`` (every point within ``radius`` of it), when that is exact: when the
+        k-th nearest pool point lies closer than ``radius - |q - c|``, every point outside
+        the pool is farther. The last ``POOLS`` pools are kept (a rollout starts near
+        where the previous one started); without one that answers, a pool is fetched
+        around ``q`` from the tree.
+        """
+        k, pools = self.k, self._pools
+        for n, (cx, cy, radius, idx, rel) in enumerate(pools):
+            dx, dy = sx - cx, sy - cy
+            margin = radius - math.hypot(dx, dy)
+            if margin > 0.0:
+                q = self._query  # |p - q|^2 = |p - c|^2 - 2 (p - c).(q - c) + |q - c|^2
+                q[0], q[1] = -2.0 * dx, -2.0 * dy
+                d2 = rel.dot(q)  # (P,), up to |q - c|^2
+                part = d2.argpartition(k - 1)
+                if d2.item(part.item(k - 1)) + (dx * dx + dy * dy) < margin * margin:
+                    if n:
+                        pools.insert(0, pools.pop(n))
+                    near = idx.take(part[:k])
+                    near.sort()
+                    return near.tobytes()
+        c = self._centre
+        c[0], c[1] = sx, sy
+        dist, idx = self.tree_.query(c, k=self.pool_size)
+        if self.pool_size == 1:
+            dist, idx = np.atleast_1d(dist), np.atleast_1d(idx)
+        radius = math.inf if self.pool_size == len(self.inputs_) else dist.item(-1)
+        rel = np.empty((len(idx), 3))  # (p - c, |p - c|^2)
+        np.subtract(self.inputs_.take(idx, axis=0), c, out=rel[:, :2])
+        np.einsum("ij,ij->i", rel[:, :2], rel[:, :2], out=rel[:, 2])
+        pools.insert(0, (sx, sy, radius, idx, rel))
+        del pools[POOLS:]
+        return np.sort(idx[:k]).tobytes()
+
+    def _terms(self, key: bytes) -> tuple[tuple[float, ...], ...]:
+        """The local fit of the neighbour set ``key`` as per-component constants of
+        Eqs. (4.6)-(4.8): (log w, mu_x, mu_y, var_x, var_y, log det, u* (3))."""
+        terms = self.cache_.get(key)
+        if terms is None:
             idx = np.frombuffer(key, dtype=np.intp)
-            w, mu, var = local_gmm(self.points_[idx], iters=self.iters, scale=self.scale_)
-            fit = (np.log(w), mu[:, :2], var[:, :2], mu[:, 2:])
+            params, centre, n_iter, _ = _fit(
+                self.points_.take(idx, axis=0), self.floor_, self.tol, self.max_iter, self._phi
+            )
+            self.n_iter_counts_[n_iter] += 1
+            cx, cy, c0, c1, c2 = centre.tolist()
+            terms = tuple(
+                (
+                    lw,
+                    mu[0] + cx,
+                    mu[1] + cy,
+                    var[0],
+                    var[1],
+                    math.log(var[0] * var[1]),
+                    mu[2] + c0,
+                    mu[3] + c1,
+                    mu[4] + c2,
+                )
+                for lw, mu, var, _ in params
+            )
             if len(self.cache_) >= self.cache_size:
                 self.cache_.clear()
-                self.terms_.clear()
-            self.cache_[key] = fit
-        return fit
+            self.cache_[key] = terms
+        return terms
 
-    def fit_local(self, x: np.ndarray):
-        """The local mixture for query ``x`` (2,): (weights, means, variances)."""
-        return self._fit(self._key(x))
+    def fit_local(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The local mixture for query ``x`` (2,) [m]: log weights (K,), input means and
+        variances (K, 2), output means (K, 3)."""
+        t = np.array(self._terms(self._key(float(x[0]), float(x[1]))))
+        return t[:, 0], t[:, 1:3], t[:, 3:5], t[:, 6:]
 
     def predict(self, x: np.ndarray) -> np.ndarray:
         """Predicted output ``u*`` (3,) for the input ``s*`` (2,) [m] (Eqs. 4.5-4.8)."""
         log_w, mu_x, var_x, mu_y = self.fit_local(x)
-        diff = x - mu_x
+        diff = np.asarray(x, dtype=float) - mu_x
         logp = log_w - 0.5 * ((diff * diff / var_x).sum(axis=1) + np.log(var_x).sum(axis=1))
         h = np.exp(logp - logp.max())  # Eqs. (4.6), (4.7)
         return (h @ mu_y) / h.sum()  # Eq. (4.8), diagonal: mu_y|x = mu_y
 
     def predict_xy(self, sx: float, sy: float) -> tuple[float, float, float]:
         """:meth:`predict` for the input ``(sx, sy)`` [m] in scalar arithmetic (the
-        rollout's inner loop): the same Eqs. (4.5)-(4.8), per-component constants
-        cached with the local fit."""
-        key = self._key((sx, sy))
-        terms = self.terms_.get(key)
-        if terms is None:
-            log_w, mu_x, var_x, mu_y = self._fit(key)
-            log_det = np.log(var_x).sum(axis=1)
-            terms = tuple(
-                (
-                    float(log_w[c]),
-                    float(mu_x[c, 0]),
-                    float(mu_x[c, 1]),
-                    float(var_x[c, 0]),
-                    float(var_x[c, 1]),
-                    float(log_det[c]),
-                    float(mu_y[c, 0]),
-                    float(mu_y[c, 1]),
-                    float(mu_y[c, 2]),
-                )
-                for c in range(len(log_w))
-            )
-            self.terms_[key] = terms
+        rollout's inner loop): the same Eqs. (4.5)-(4.8)."""
+        terms = self._terms(self._key(sx, sy))
         logps = []
         for lw, mx, my, vx, vy, ld, *_ in terms:
             dx, dy = sx - mx, sy - my

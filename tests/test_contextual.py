@@ -4,6 +4,8 @@ recogniser and the tracking controller (autonomy.tracking)."""
 from __future__ import annotations
 
 import math
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -27,6 +29,9 @@ from autonomy.training import TrainSettings, synthetic_demonstrations, train
 from autonomy.types import RobotModel
 from sim.testing import cluttered_segments, synthetic_observation
 from sim.types import SemanticComponent
+
+sys.path.insert(0, str(Path(__file__).parent))
+from gmr_reference import ref_rollout  # noqa: E402
 
 ROBOT = RobotModel.rectangle(0.6, 0.5)
 FAST = TrainSettings(
@@ -141,6 +146,34 @@ def test_mahalanobis_threshold_controls_the_length(model):
     assert lengths == [0, 40]
 
 
+def _random_component(rng, kind):
+    centre = rng.uniform(-3, 3, 2) + (1.0, 0.0)
+    if kind == "doorway":
+        ends = np.array([centre + (0, -0.45), centre + (0, 0.45)])
+        return SemanticComponent(id="d", kind=kind, centre=centre, points=ends, ends=ends)
+    pts = centre + rng.normal(scale=0.4, size=(int(rng.integers(1, 30)), 2))
+    return SemanticComponent(id="c", kind=kind, centre=centre, points=pts)
+
+
+@pytest.mark.parametrize("kind", ["doorway", "object", "wall"])
+def test_rollout_equals_a_fresh_fit_at_every_step(model, rng, kind):
+    """Alg. 3 with u* from a local GMM fitted afresh, EM to convergence, at every step
+    (tests/gmr_reference.py) gives the same path and distances as the cached rollout."""
+    steps = 0
+    for stop in (3.0, 1e3, 5.0, 1e3):  # 1e3: the step cap ends the rollout
+        s = ContextualSettings(model_path="", rollout_steps=30, mahalanobis_stop=stop)
+        runtime = build_runtime(model, s)
+        comp = _random_component(rng, kind)
+        cluster = int(rng.choice(model.cluster_ids))
+        path, dists = rollout(runtime, cluster, comp, ROBOT, s)
+        ref_path, ref_dists = ref_rollout(model, cluster, comp, ROBOT, s)
+        assert path.shape == ref_path.shape
+        np.testing.assert_allclose(path, ref_path, rtol=1e-9, atol=1e-9)
+        np.testing.assert_allclose(dists, ref_dists, rtol=1e-9, atol=1e-9)
+        steps += len(path)
+    assert steps >= 60  # the comparison covered integrated steps, not only first stops
+
+
 def test_recogniser_equals_the_classifier_recognise(model, rng):
     fast = Recogniser(model.sogp)
     for _ in range(5):
@@ -154,24 +187,15 @@ def test_recogniser_equals_the_classifier_recognise(model, rng):
 
 def test_local_gmr_regression_equals_gmr_of_its_local_mixture(rng):
     data = np.column_stack((rng.uniform(-2, 2, (300, 2)), rng.normal(size=(300, 3))))
-    local = LocalGMR(data, k=10, iters=5)
+    local = LocalGMR(data, k=10)
     for _ in range(10):
         x = rng.uniform(-2, 2, 2)
         log_w, mu_x, var_x, mu_y = local.fit_local(x)
         _, idx = local.tree_.query(x, k=10)
-        w, mu, var = local_gmm(data[np.sort(idx)], iters=5, scale=local.scale_)
+        w, mu, var, *_ = local_gmm(data[np.sort(idx)], scale=local.scale_)
         expected, _ = gmr(w, mu, var, x[None, :], [0, 1], [2, 3, 4])
         np.testing.assert_allclose(local.predict(x), expected[0], atol=1e-10)
         np.testing.assert_allclose(np.exp(log_w).sum(), 1.0)
-
-
-def test_local_gmm_separates_two_blobs_and_handles_duplicates(rng):
-    blobs = np.vstack((rng.normal(0.0, 0.01, (5, 5)), rng.normal(3.0, 0.01, (5, 5))))
-    w, mu, _ = local_gmm(blobs, iters=10)
-    np.testing.assert_allclose(np.sort(mu[:, 0]), [0.0, 3.0], atol=0.05)
-    np.testing.assert_allclose(w, [0.5, 0.5], atol=1e-6)
-    w, mu, var = local_gmm(np.ones((10, 5)), iters=5)
-    assert w.shape == (1,) and np.all(var > 0)
 
 
 def test_the_mode_output_passes_the_safety_check(mode, rng):
@@ -208,6 +232,9 @@ def test_a_missing_model_file_is_named(tmp_path):
 def test_settings_are_validated():
     with pytest.raises(ValueError, match="candidates"):
         ContextualSettings(candidates=0)
+    for bad in ({"em_tol": -1.0}, {"em_tol": float("nan")}, {"em_max_iter": 0}):
+        with pytest.raises(ValueError, match=next(iter(bad))):
+            ContextualSettings(**bad)
     with pytest.raises(ValueError, match="unknown setting"):
         settings_from(ContextualSettings, {"nonsense": 1}, where="mode 'contextual_task'")
     s = settings_from(ContextualSettings, {"tracking": {"lookahead_m": 0.6}}, where="m")
@@ -294,12 +321,12 @@ def test_non_finite_scores_never_win(model, rng):
 def test_scalar_gmr_prediction_equals_the_array_one(rng):
     data = np.column_stack((rng.uniform(-2, 2, (200, 2)), rng.normal(size=(200, 3))))
     for k in (1, 2, 10):
-        local = LocalGMR(data, k=k, iters=5)
+        local = LocalGMR(data, k=k)
         for _ in range(20):
             x = rng.uniform(-2.5, 2.5, 2)
             got = local.predict_xy(float(x[0]), float(x[1]))
             np.testing.assert_allclose(got, local.predict(x), rtol=1e-13, atol=1e-13)
-    dup = LocalGMR(np.ones((12, 5)), k=10, iters=5)  # one component: all points coincide
+    dup = LocalGMR(np.ones((12, 5)), k=10)  # one component: all points coincide
     np.testing.assert_allclose(dup.predict_xy(0.3, -0.2), np.ones(3))
 
 

@@ -1,7 +1,10 @@
 """The optimised contextual mode (autonomy.contextual) gives the outputs of its plain
 formulation: the reference below is the implementation before the per-tick optimisations
 (batched recogniser, scalar GMR prediction, the rollout's folded Mahalanobis map, one call
-for all target points), kept here verbatim in its arithmetic. Both run on the same model
+for all target points), kept here verbatim in its arithmetic; its local GMR follows the
+faithful Alg. 3: ``u*`` at every step from the local GMM of
+:func:`autonomy.local_gmr.local_gmm` (EM to convergence; checked against a plain EM in
+tests/test_local_gmr.py), so the fits agree bit for bit. Both run on the same model
 file (a copy of the shipped model, so retraining it meanwhile changes nothing here) and on
 the same observations: the robot driven through ``cluttered_room`` by ``sim.world``, and
 synthetic scenes with plain tuples of components.
@@ -23,6 +26,7 @@ from autonomy.arbitration import blend
 from autonomy.contextual import ContextualSettings, ContextualTaskMode
 from autonomy.features import encode, task_features
 from autonomy.gmr import data_scale
+from autonomy.local_gmr import local_gmm
 from autonomy.model import DEFAULT_MODEL, GMR_INPUT, load_model
 from autonomy.safety import safe_command
 from autonomy.sogp_classifier import argmax_finite
@@ -78,40 +82,13 @@ class _RefRecogniser:
         return i, int(self.classes_[j]), beta, mean
 
 
-def _ref_local_gmm(local, *, iters, reg=1e-3, scale=None):
-    k = local.shape[0]
-    floor = reg * (data_scale(local) if scale is None else scale)
-    centre = local.mean(axis=0)
-    first = int(np.argmin(((local - centre) ** 2).sum(axis=1)))
-    d2 = ((local - local[first]) ** 2).sum(axis=1)
-    second = int(np.argmax(d2))
-    if not d2[second] > 0:
-        return np.ones(1), centre[None, :], (local.var(axis=0) + floor)[None, :]
-    mu = local[[first, second]].copy()
-    var = np.tile(local.var(axis=0) + floor, (2, 1))
-    log_w = np.full(2, -math.log(2.0))
-    sq = local * local
-    for _ in range(iters):
-        prec = 1.0 / var
-        logp = (local @ (mu * prec).T - 0.5 * (sq @ prec.T)) + (
-            log_w - 0.5 * ((mu * mu * prec).sum(axis=1) + np.log(var).sum(axis=1))
-        )
-        r = np.exp(logp - logp.max(axis=1, keepdims=True))
-        r /= r.sum(axis=1, keepdims=True)
-        nk = r.sum(axis=0) + 1e-12
-        log_w = np.log(nk / k)
-        mu = (r.T @ local) / nk[:, None]
-        var = np.maximum((r.T @ sq) / nk[:, None] - mu * mu, 0.0) + floor
-    return np.exp(log_w), mu, var
-
-
 class _RefLocalGMR:
-    def __init__(self, points, *, k, iters):
+    def __init__(self, points, *, k, tol, max_iter):
         self.points_ = np.asarray(points, dtype=float)
         self.scale_ = data_scale(self.points_)
         self.tree_ = cKDTree(self.points_[:, list(GMR_INPUT)])
         self.k = min(int(k), len(self.points_))
-        self.iters = int(iters)
+        self.tol, self.max_iter = tol, max_iter
         self.cache_ = {}
 
     def predict(self, x):
@@ -120,7 +97,9 @@ class _RefLocalGMR:
         key = idx.tobytes()
         fit = self.cache_.get(key)
         if fit is None:
-            w, mu, var = _ref_local_gmm(self.points_[idx], iters=self.iters, scale=self.scale_)
+            w, mu, var, *_ = local_gmm(
+                self.points_[idx], tol=self.tol, max_iter=self.max_iter, scale=self.scale_
+            )
             fit = self.cache_[key] = (np.log(w), mu[:, :2], var[:, :2], mu[:, 2:])
         log_w, mu_x, var_x, mu_y = fit
         diff = x - mu_x
@@ -147,7 +126,12 @@ class _Reference:
         self.model, self.s, self.robot = model, settings, robot
         self.recogniser = _RefRecogniser(model.sogp)
         self.gmrs = [
-            _RefLocalGMR(model.cluster_points(j), k=settings.gmr_k, iters=settings.em_iters)
+            _RefLocalGMR(
+                model.cluster_points(j),
+                k=settings.gmr_k,
+                tol=settings.em_tol,
+                max_iter=settings.em_max_iter,
+            )
             for j in range(model.n_clusters)
         ]
         L = np.linalg.cholesky(model.cluster_covariances)
@@ -167,12 +151,10 @@ class _Reference:
         limit = np.array([robot.max_speed, robot.max_speed, robot.max_yaw_rate])
         x = y = yaw = 0.0
         path, z = [], np.empty(7)
-        ux = uy = uw = 0.0
-        for step in range(s.rollout_steps):
+        for _ in range(s.rollout_steps):
             sx, sy = _ref_target_from(kind, points, s0, x, y, yaw)
-            if step % s.gmr_every == 0:
-                u = np.clip(gmr.predict(np.array([sx, sy])), -1.0, 1.0)
-                ux, uy, uw = float(u[0]), float(u[1]), float(u[2])
+            u = np.clip(gmr.predict(np.array([sx, sy])), -1.0, 1.0)
+            ux, uy, uw = float(u[0]), float(u[1]), float(u[2])
             speed = math.hypot(ux, uy)
             if speed >= 1e-6 and math.hypot(sx, sy) >= 1e-9:
                 theta = math.atan2(uy, ux) - math.atan2(sy, sx)

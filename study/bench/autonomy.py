@@ -127,8 +127,12 @@ def run(quick: bool) -> dict:
         - ``contextual_tick_ms`` {p50, p95, p99, candidates}: one ``contextual_task``
           tick (candidates, recognition, the Alg. 3 rollout, tracking, blending, the
           safety layer) with ``candidates`` = 10 semantic components per tick;
-          ``rollout_ms`` {p50, p95}: the rollout alone; ``contextual_stage_ms``: the
-          mean of each stage of ``Assist.timings_ms``; ``contextual_recognised_share``;
+          ``rollout_ms`` {p50, p95, p99}: the rollout alone; ``rollout_steps_mean``: the
+          mean number of predicted poses over the ticks with a rollout; ``rollout_em``
+          {fits, iterations_mean, iterations_max}: the local EM fits the rollouts made
+          (neighbour sets not yet cached) and their EM iterations;
+          ``contextual_stage_ms``: the mean of each stage of ``Assist.timings_ms``;
+          ``contextual_recognised_share``;
           ``contextual_model``: "shipped", or "synthetic" when the shipped model is
           missing.
     """
@@ -192,6 +196,15 @@ def _synthetic_components(rng: np.random.Generator, n: int) -> tuple:
     return tuple(out)
 
 
+def _em_iterations(mode) -> np.ndarray:
+    """(max_iter + 1,) local fits so far of the mode's rollout GMRs, per EM iteration
+    count (zeros without a model)."""
+    runtime = mode.runtime_
+    if runtime is None:
+        return np.zeros(1, dtype=int)
+    return np.sum([gmr.n_iter_counts_ for gmr in runtime.gmrs], axis=0)
+
+
 def _contextual_figures(observations: list, robot: RobotModel, n: int) -> dict:
     import dataclasses
 
@@ -216,8 +229,9 @@ def _contextual_figures(observations: list, robot: RobotModel, n: int) -> dict:
             extra = _synthetic_components(rng, CONTEXTUAL_CANDIDATES - len(comps))
             obs = dataclasses.replace(obs, components=comps + extra)
         prepared.append((obs, u))
-    tick, roll, assisted = [], [], 0
+    tick, roll, steps, assisted = [], [], [], 0
     stages: dict[str, list[float]] = {}
+    before = _em_iterations(mode)
     repeats = max(1, n // len(prepared))
     for k in range(repeats * len(prepared)):
         obs, u = prepared[k % len(prepared)]
@@ -228,12 +242,22 @@ def _contextual_figures(observations: list, robot: RobotModel, n: int) -> dict:
         for stage, ms in assist.timings_ms.items():
             stages.setdefault(stage, []).append(ms)
         assisted += assist.target != ""  # below min_input the mode does not recognise
+        if assist.target != "":
+            steps.append(len(assist.predicted_path))
+    iters = _em_iterations(mode) - before
+    fits = int(iters.sum())
     return {
         "contextual_tick_ms": {
             **_percentiles(tick, (50, 95, 99)),
             "candidates": CONTEXTUAL_CANDIDATES,
         },
-        "rollout_ms": _percentiles(roll, (50, 95)),
+        "rollout_ms": _percentiles(roll, (50, 95, 99)),
+        "rollout_steps_mean": round(float(np.mean(steps)), 2) if steps else 0.0,
+        "rollout_em": {
+            "fits": fits,
+            "iterations_mean": round(float(iters @ np.arange(len(iters))) / max(fits, 1), 3),
+            "iterations_max": int(np.flatnonzero(iters).max()) if fits else 0,
+        },
         "contextual_stage_ms": {k: round(float(np.mean(v)), 4) for k, v in stages.items()},
         "contextual_recognised_share": round(assisted / max(len(tick), 1), 3),
         "contextual_model": which,
