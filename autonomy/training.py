@@ -330,9 +330,34 @@ def train(
     )
     info["negatives"] = 0 if negatives is None else int(len(negatives))
     info["truncation"] = int(settings.max_components)
-    hyper = [_hyper_summary(hp) for hp in classifier.hyperparameters_]
     info["novelty_tol"] = tols
     info["way_points"] = int(len(wp))
+    metadata = _metadata(q, labels, task, classifier, info, settings, seed=seed, source=source)
+    return ContextualModel.with_classifier(
+        classifier,
+        scaler=scaler,
+        cluster_ids=np.arange(c, dtype=np.int64),
+        cluster_means=means,
+        cluster_covariances=covs,
+        gmr_points=gmr_points,
+        gmr_offsets=offsets,
+        metadata=metadata,
+    )
+
+
+def _metadata(
+    q: np.ndarray,
+    labels: np.ndarray,
+    task: np.ndarray | None,
+    classifier: SOGPClassifier,
+    info: dict[str, Any],
+    settings: TrainSettings,
+    *,
+    seed: int,
+    source: str,
+) -> dict[str, Any]:
+    """The model's metadata: versions, date, data hash, settings, the DP-GMM's ``info``,
+    the cluster summary, every GP's hyperparameters and (with ``task``) the purity."""
     metadata = {
         "format_version": FORMAT_VERSION,
         "platform_version": platform_version(),
@@ -344,20 +369,11 @@ def train(
         "settings": asdict(settings),
         "dpgmm": info,
         "clusters": cluster_summary(labels, task),
-        "hyperparameters": hyper,
+        "hyperparameters": [_hyper_summary(hp) for hp in classifier.hyperparameters_],
     }
     if task is not None:
         metadata["purity"] = round(cluster_purity(labels, np.asarray(task)), 4)
-    return ContextualModel.with_classifier(
-        classifier,
-        scaler=scaler,
-        cluster_ids=np.arange(c, dtype=np.int64),
-        cluster_means=means,
-        cluster_covariances=covs,
-        gmr_points=gmr_points,
-        gmr_offsets=offsets,
-        metadata=metadata,
-    )
+    return metadata
 
 
 def _hyper_summary(hp: Any) -> dict[str, Any]:
