@@ -314,17 +314,19 @@ class LocalGMR:
     def predict_xy(self, sx: float, sy: float) -> tuple[float, float, float]:
         """:meth:`predict` for the input ``(sx, sy)`` [m] in scalar arithmetic (the
         rollout's inner loop): the same Eqs. (4.5)-(4.8)."""
-        terms = self._terms(self._key(sx, sy))
-        logps = []
-        for lw, mx, my, vx, vy, ld, *_ in terms:
-            dx, dy = sx - mx, sy - my
-            logps.append(lw - 0.5 * ((dx * dx / vx + dy * dy / vy) + ld))
-        top = max(logps)
-        h_sum = o0 = o1 = o2 = 0.0
-        for lp, term in zip(logps, terms, strict=True):
-            h = math.exp(lp - top)  # Eqs. (4.6), (4.7)
-            h_sum += h
-            o0 += h * term[6]
-            o1 += h * term[7]
-            o2 += h * term[8]
-        return o0 / h_sum, o1 / h_sum, o2 / h_sum  # Eq. (4.8)
+        key = self._key(sx, sy)
+        terms = self.cache_.get(key) or self._terms(key)
+        if len(terms) == 1:
+            return terms[0][6:]
+        (lw0, mx0, my0, vx0, vy0, ld0, a0, b0, c0), (lw1, mx1, my1, vx1, vy1, ld1, a1, b1, c1) = (
+            terms
+        )
+        dx0, dy0, dx1, dy1 = sx - mx0, sy - my0, sx - mx1, sy - my1
+        l0 = lw0 - 0.5 * ((dx0 * dx0 / vx0 + dy0 * dy0 / vy0) + ld0)  # Eqs. (4.6), (4.7)
+        l1 = lw1 - 0.5 * ((dx1 * dx1 / vx1 + dy1 * dy1 / vy1) + ld1)
+        if l0 >= l1:
+            h0, h1 = 1.0, math.exp(l1 - l0)
+        else:
+            h0, h1 = math.exp(l0 - l1), 1.0
+        h = h0 + h1
+        return (h0 * a0 + h1 * a1) / h, (h0 * b0 + h1 * b1) / h, (h0 * c0 + h1 * c1) / h
