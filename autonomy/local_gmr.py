@@ -92,9 +92,10 @@ def _em(
     phi_t = phi.T
     previous = math.nan
     for it in range(1, max_iter + 1):
-        params = [_m_step(s, k, floor) for s in np.dot(resp, phi).tolist()]  # M step
-        theta = np.array(params[0][3] + params[1][3]).reshape(2, 11)
-        logp = np.dot(theta, phi_t)  # E step, (2, k): log pi_c N(x_i; mu_c, var_c)
+        s0, s1 = np.dot(resp, phi).tolist()  # M step
+        p0, p1 = _m_step(s0, k, floor), _m_step(s1, k, floor)
+        params = [p0, p1]
+        logp = np.dot((p0[3], p1[3]), phi_t)  # E step, (2, k): log pi_c N(x_i; mu_c, var_c)
         lse = np.logaddexp(logp[0], logp[1])  # (k,) log sum_c pi_c N(x_i; mu_c, var_c)
         current = math.fsum(lse.tolist()) / k  # mean log-likelihood
         if abs(current - previous) < tol * abs(current):
