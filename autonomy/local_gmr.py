@@ -258,11 +258,11 @@ class LocalGMR:
                 q = self._query  # |p - q|^2 = |p - c|^2 - 2 (p - c).(q - c) + |q - c|^2
                 q[0], q[1] = -2.0 * dx, -2.0 * dy
                 d2 = rel.dot(q)  # (P,), up to |q - c|^2
-                part = d2.argpartition(k - 1)
-                if d2.item(part.item(k - 1)) + (dx * dx + dy * dy) < margin * margin:
+                order = d2.argsort(kind="stable")
+                if d2.item(order.item(k - 1)) + (dx * dx + dy * dy) < margin * margin:
                     if n:
                         pools.insert(0, pools.pop(n))
-                    near = idx.take(part[:k])
+                    near = idx.take(order[:k])
                     near.sort()
                     return near.tobytes()
         c = self._centre
