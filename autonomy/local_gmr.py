@@ -49,7 +49,7 @@ def _m_step(
 ) -> tuple[float, list[float], list[float], list[float]]:
     """M step of one component from its responsibility-weighted sums ``stats`` =
     (sum r x (5), sum r x^2 (5), sum r) over the features ``(x, x^2, 1)`` of the five
-    GMR columns (written out per column: this runs some 10^4 times a session).
+    GMR columns, written out column by column.
 
     Returns its log weight, mean (5,), variance (5,) (floored) and the coefficients
     (11,) of ``log pi + log N(x; mu, diag var)`` on the features (the next E step):
@@ -225,14 +225,14 @@ class LocalGMR:
             raise ValueError(f"k: must be an integer >= 1, got {k!r}")
         self.scale_ = data_scale(self.points_)  # for the relative variance floor
         self.floor_ = (1e-3 * self.scale_).tolist()  # as local_gmm's default reg
-        self.tree_ = cKDTree(self.points_[:, list(GMR_INPUT)])
+        self.inputs_ = np.ascontiguousarray(self.points_[:, list(GMR_INPUT)])  # (N, 2) [m]
+        self.tree_ = cKDTree(self.inputs_)
         self.k = min(int(k), len(self.points_))
         self.tol = tol
         self.max_iter = max_iter
         self.cache_size = int(cache_size)
         self.cache_: dict[bytes, tuple[tuple[float, ...], ...]] = {}
         self.n_iter_counts_ = [0] * (max_iter + 1)
-        self.inputs_ = np.ascontiguousarray(self.points_[:, list(GMR_INPUT)])  # (N, 2) [m]
         self.pool_size = min(POOL_FACTOR * self.k, len(self.points_))
         self.origin_ = self.points_.mean(axis=0)  # (5,) origin of the local fits' sums
         self.features_ = _features(self.points_ - self.origin_)  # (N, 11), see _fit
@@ -280,7 +280,8 @@ class LocalGMR:
 
     def _terms(self, key: bytes) -> tuple[tuple[float, ...], ...]:
         """The local fit of the neighbour set ``key`` as per-component constants of
-        Eqs. (4.6)-(4.8): (log w, mu_x, mu_y, var_x, var_y, log det, u* (3))."""
+        Eqs. (4.6)-(4.8): (log w, the input means (2) and variances (2) [m, m^2], the
+        log determinant of the input covariance, the output means ``u*`` (3))."""
         terms = self.cache_.get(key)
         if terms is None:
             phi = self.features_.take(np.frombuffer(key, dtype=np.intp), axis=0)
