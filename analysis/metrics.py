@@ -3,7 +3,8 @@
 Thesis Sec. 7.6.2 (Figs. 7.50-7.52): primary-task completion time, collisions and score;
 secondary-task answer time and errors with the baseline as a fourth level; the NASA-TLX.
 Sec. 7.5 (Fig. 7.44, Table 7.10): clearance to obstacles. The assistance and recognition
-metrics describe the modes themselves (spec section 7, issue 7).
+metrics describe the modes themselves (spec section 7, issue 7); the recognition metric is
+descriptive only (:attr:`Metric.descriptive`, :mod:`analysis.recognition`).
 
 Each :class:`Metric` names a column of :attr:`analysis.data.Frames.trials`; its names match
 ``study.engine.protocol.METRICS`` where the protocol knows the metric (``score_s``, ``tlx_raw``...),
@@ -33,6 +34,8 @@ class Metric:
     baseline : a secondary-task metric: the baseline block is a further level.
     lower_is_better : direction of a good result, None when neither.
     description : one sentence for the report.
+    descriptive : described per mode, never tested: no repeated-measures ANOVA (the
+        recognition metric exists for the modes with task recognition only, one level).
     """
 
     name: str
@@ -41,6 +44,7 @@ class Metric:
     baseline: bool = False
     lower_is_better: bool | None = True
     description: str = ""
+    descriptive: bool = False
 
 
 _TLX_SUBSCALES = tuple(
@@ -160,16 +164,18 @@ METRICS: tuple[Metric, ...] = (
         "recognition",
         lower_is_better=False,
         description=(
-            "Synthetic participants: share of ticks whose recognised task and target equal "
-            "the true intention."
+            "Synthetic participants: share of labelled ticks whose recognised task and "
+            "target equal the true intention (described in 'Recognition in the loop')."
         ),
+        descriptive=True,
     ),
 )
 BY_NAME: dict[str, Metric] = {m.name: m for m in METRICS}
 
 
 def ordered_metrics(planned: tuple[str, ...]) -> tuple[Metric, ...]:
-    """The protocol's planned metrics first (in its order), then the rest of the table."""
+    """The protocol's planned metrics first (in its order), then the rest of the table
+    (descriptive metrics included: the caller leaves them out of the tests)."""
     first = [BY_NAME[n] for n in planned if n in BY_NAME]
     return tuple(first + [m for m in METRICS if m not in first])
 

@@ -5,7 +5,8 @@ Thesis Sec. 7.6.2: per metric a one-way repeated-measures ANOVA with the mode as
 is rejected at the protocol's alpha; Figs. 7.44b and 7.50-7.52. :func:`build_report` reads a
 study (:mod:`analysis.data`), analyses every metric of :mod:`analysis.metrics` with
 :func:`analysis.stats.analyse`, draws the figures (:mod:`analysis.figures`) and renders
-``templates/report.html.j2``.
+``templates/report.html.j2``. In-the-loop recognition, measured for the modes with task
+recognition only, is described per mode and never tested (:mod:`analysis.recognition`).
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ from markupsafe import Markup
 from analysis import figures as fig
 from analysis.data import BASELINE, AnalysisConfig, Frames, StudyData, load_study, tidy
 from analysis.metrics import BY_NAME, Metric, long_frame, ordered_metrics
+from analysis.recognition import describe, html_rows, recognition_tables
 from analysis.stats import analyse
 from analysis.tables import apa_anova, format_p
 from questionnaires import experience as experience_q
@@ -36,7 +38,8 @@ class ReportPaths:
     Attributes
     ----------
     html : the report.
-    results_json : {metric -> analyse() object}.
+    results_json : {metric -> analyse() object, "recognition" -> the object of
+        :func:`analysis.recognition.describe`}.
     figures : every PNG and SVG file.
     tables : every CSV file.
     metrics : names of the analysed metrics, in report order.
@@ -175,7 +178,7 @@ def _sections(
     cfg = data.config
     sections, skipped, results = [], [], {}
     for metric in ordered_metrics(cfg.metrics):
-        if only is not None and metric.name not in only:
+        if metric.descriptive or (only is not None and metric.name not in only):
             continue
         long = long_frame(frames, metric, baseline=cfg.secondary_baseline_level)
         planned = metric.name in cfg.metrics
@@ -346,17 +349,19 @@ def build_report(
     written = _Written(figures=[], tables=[])
     positions, orders = _write_frames(frames, out / "tables", written)
     sections, skipped, results = _sections(data, frames, out, say, written, metrics)
-    if not results:
+    recognition = _recognition(frames, out / "tables", say, written, metrics)
+    if not results and not recognition:
         raise ValueError(
             f"{data.source}: no metric could be analysed "
-            f"({'; '.join(s['name'] + ': ' + s['reason'] for s in skipped)})"
+            f"({'; '.join(s['name'] + ': ' + s['reason'] for s in skipped) or 'no data'})"
         )
     written.csv(_summary_table(results, data.config.metrics), out / "tables" / "summary.csv")
     say("figures: TLX profile, clearance, paths")
     extra = _extra_figures(data, frames, out, written)
     results_json = out / "results.json"
-    results_json.write_text(json.dumps(results, indent=1, allow_nan=False), encoding="utf-8")
-    html = _render_html(data, frames, positions, orders, sections, skipped, extra)
+    stored = results if recognition is None else {**results, "recognition": recognition}
+    results_json.write_text(json.dumps(stored, indent=1, allow_nan=False), encoding="utf-8")
+    html = _render_html(data, frames, positions, orders, sections, skipped, extra, recognition)
     html_path = out / "report.html"
     html_path.write_text(html, encoding="utf-8")
     say(f"wrote {html_path}")
@@ -368,6 +373,30 @@ def build_report(
         metrics=tuple(results),
         seconds=time.perf_counter() - start,
     )
+
+
+def _recognition(
+    frames: Frames,
+    tables: Path,
+    say: Callable[[str], None],
+    written: _Written,
+    only: tuple[str, ...] | None,
+) -> dict | None:
+    """The recognition in the loop per mode (:func:`analysis.recognition.describe`), its two
+    CSV tables written; None when the report is limited to metrics without it."""
+    if only is not None and not any(BY_NAME[m].group == "recognition" for m in only):
+        return None
+    described = describe(frames)
+    per_mode, per_task = recognition_tables(described)
+    written.csv(per_mode, tables / "recognition.csv")
+    written.csv(per_task, tables / "recognition_per_task.csv")
+    for mode, d in described.items():
+        say(
+            f"recognition in the loop, {mode}: task match {d['loop_task_match']:.3f}, "
+            f"task + target {d['loop_task_target_match']:.3f}, null {d['loop_null_rate']:.3f} "
+            f"of {d['labelled_ticks']} labelled ticks"
+        )
+    return described
 
 
 def _checked_metrics(metrics: tuple[str, ...] | None) -> tuple[str, ...] | None:
@@ -446,6 +475,7 @@ def _render_html(
     sections: list[dict],
     skipped: list[dict],
     extra: list[dict],
+    recognition: dict | None,
 ) -> str:
     """``templates/report.html.j2`` rendered with the study's values."""
     counted = set(frames.trials["participant"])
@@ -476,6 +506,7 @@ def _render_html(
         sections=sections,
         skipped=skipped,
         extra=extra,
+        recognition=None if recognition is None else html_rows(recognition),
         warnings=all_warnings,
         aborted=frames.aborted.to_dict("records"),
         incomplete=incomplete.to_dict("records"),

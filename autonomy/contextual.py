@@ -27,6 +27,7 @@ from autonomy.model import DEFAULT_MODEL, ContextualModel, load_model
 from autonomy.modes import register, settings_from
 from autonomy.safety import safe_command
 from autonomy.sogp_classifier import argmax_finite
+from autonomy.task_types import TASK_TYPES, contextual_task, primitive_motions
 from autonomy.tracking import TrackingSettings, track
 from autonomy.types import EMPTY_PATH, Assist, Candidates, RobotModel, as_candidates
 
@@ -382,23 +383,22 @@ class ContextualTaskMode:
         else:
             self.runtime_ = _runtime_for(self.settings)
         self.robot_: RobotModel | None = None
+        self.motions_ = (
+            primitive_motions(self.runtime_.model.metadata.get("clusters", []))
+            if self.runtime_ is not None
+            else {}
+        )
 
     def reset(self, robot: RobotModel) -> None:
         self.robot_ = robot
 
     def label_tasks(self) -> dict[str, str]:
-        """Motion primitive (``Assist.label``) -> its dominant contextual task type in the
-        demonstrations it was learned from (the model's ``clusters[].task_share``, kept for
-        reporting only); empty without a model. The trial loop stores it so that the
+        """The mode's labels are contextual task types (:mod:`autonomy.task_types`): each
+        means itself; empty without a model. The trial loop stores it so that the
         recognition can be scored against a synthetic participant's true intention."""
         if self.runtime_ is None:
             return {}
-        out: dict[str, str] = {}
-        for cluster in self.runtime_.model.metadata.get("clusters", []):
-            shares = cluster.get("task_share") or {}
-            if shares:
-                out[str(cluster["name"])] = max(shares, key=shares.get)
-        return out
+        return {t: t for t in TASK_TYPES}
 
     def _manual(self, u: np.ndarray, points: np.ndarray, start: float, t_rec: float) -> Assist:
         robot = self.robot_
@@ -493,7 +493,7 @@ class ContextualTaskMode:
             v=v,
             g=g,
             beta=beta,
-            label=rt.names[rt.row[cluster]],
+            label=contextual_task(str(component.kind), self.motions_.get(int(cluster), "")),
             target=str(component.id),
             scores=scores,
             predicted_path=path,

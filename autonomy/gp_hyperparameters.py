@@ -6,6 +6,8 @@ docs/decisions.md.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from scipy.linalg import cho_solve, lapack
 from scipy.optimize import minimize
@@ -115,6 +117,46 @@ def _target_scale(y: np.ndarray) -> float:
     return v if v > 1e-12 else 1.0
 
 
+@dataclass(frozen=True, slots=True)
+class Hyperparameters:
+    """The result of :func:`fit_hyperparameters`.
+
+    ``binding`` names the parameters (``"length_scale_<j>"``, ``"signal_var"``,
+    ``"noise_var"``) that sit at a bound the evidence pushes against: its gradient there
+    points out of the box by more than ``BINDING_GRADIENT`` nats per log unit. A length
+    scale at its upper bound with a flat evidence has switched its dimension off (ARD)
+    and is not binding; ``switched_off`` lists those dimensions.
+    """
+
+    length_scales: np.ndarray  # (d,)
+    signal_var: float
+    noise_var: float
+    log_evidence: float  # Eq. (5.11) at the optimum, on the subsample [nats]
+    binding: tuple[str, ...]
+    switched_off: tuple[int, ...]
+
+
+BINDING_GRADIENT = 1e-2  # [nats per log unit] below it the evidence is flat at a bound
+
+
+def binding_bounds(
+    theta: np.ndarray, grad: np.ndarray, bounds: list[tuple[float, float]]
+) -> tuple[tuple[str, ...], tuple[int, ...]]:
+    """Which log parameters ``theta`` (d + 2,) sit at a bound of ``bounds`` that the
+    log-evidence gradient ``grad`` (d + 2,) pushes against, and which length scales sit
+    at their upper bound with a flat evidence (switched-off dimensions)."""
+    d = len(theta) - 2
+    names = [f"length_scale_{j}" for j in range(d)] + ["signal_var", "noise_var"]
+    binding, off = [], []
+    for k, ((lo, hi), t, g) in enumerate(zip(bounds, theta, grad, strict=True)):
+        at_lo, at_hi = t <= lo + 1e-6, t >= hi - 1e-6
+        if (at_lo and g < -BINDING_GRADIENT) or (at_hi and g > BINDING_GRADIENT):
+            binding.append(names[k])
+        elif at_hi and k < d:
+            off.append(k)
+    return tuple(binding), tuple(off)
+
+
 def fit_hyperparameters(
     X: np.ndarray,
     y: np.ndarray,
@@ -123,7 +165,7 @@ def fit_hyperparameters(
     max_points: int = 600,
     restarts: int = 3,
     max_length_scale: float = MAX_LENGTH_SCALE,
-) -> tuple[np.ndarray, float, float]:
+) -> Hyperparameters:
     """Type-II maximum likelihood hyperparameters of the full GP (Sec. 5.2, Eq. 5.11).
 
     Parameters
@@ -144,12 +186,9 @@ def fit_hyperparameters(
 
     Returns
     -------
-    length_scales : numpy.ndarray
-        (d,) SE-ARD length scales.
-    signal_var : float
-        Signal variance.
-    noise_var : float
-        Noise variance.
+    Hyperparameters
+        The SE-ARD length scales (d,), signal and noise variance, the evidence and which
+        bounds bind (:func:`binding_bounds`).
     """
     X = np.asarray(X, dtype=float)
     y = np.asarray(y, dtype=float).reshape(-1)
@@ -178,4 +217,13 @@ def fit_hyperparameters(
         res = minimize(negative, theta0, jac=True, method="L-BFGS-B", bounds=bounds)
         if res.fun < best_value:
             best_theta, best_value = res.x, float(res.fun)
-    return np.exp(best_theta[:d]), float(np.exp(best_theta[d])), float(np.exp(best_theta[d + 1]))
+    value, grad = log_evidence(best_theta, X, y)
+    binding, off = binding_bounds(best_theta, grad, bounds)
+    return Hyperparameters(
+        length_scales=np.exp(best_theta[:d]),
+        signal_var=float(np.exp(best_theta[d])),
+        noise_var=float(np.exp(best_theta[d + 1])),
+        log_evidence=float(value),
+        binding=binding,
+        switched_off=off,
+    )

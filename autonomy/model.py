@@ -32,7 +32,7 @@ from autonomy.features import ENCODED_NAMES, FeatureScaler
 from autonomy.gp_kernel import se_ard_kernel
 from autonomy.sogp_classifier import SOGPClassifier
 
-FORMAT_VERSION = 2  # 2: angle encoded as |u_xy| (cos, sin); capacity 250
+FORMAT_VERSION = 2  # 2: angle encoded as |u_xy| (cos, sin)
 DIM = len(ENCODED_NAMES)  # 7: s_x, s_y, cos theta, sin theta, v_x, v_y, omega
 GMR_COLUMNS = ("s_x", "s_y", "v_x", "v_y", "omega")  # input s* [m], output u* (normalised)
 GMR_INPUT = (0, 1)

@@ -20,7 +20,7 @@ from autonomy.gp_kernel import cholesky_with_jitter, se_ard_kernel
 _TINY = 1e-300
 _MIN_ALLOC = 16
 _REFINE_BLOCK = 4096  # observations per kernel block in SparseOnlineGP.refine
-MAX_LENGTH_SCALE = 0.5  # upper bound of a length scale, in standard deviations of its column
+MAX_LENGTH_SCALE = 100.0  # bound of a length scale [std of its column]: a numerical guard
 NOVELTY_TOL = 1e-4  # relative to the signal variance; below it a point is projected
 
 

@@ -46,6 +46,8 @@ class SOGPClassifier:
         (c,) the cluster ids, sorted; column j of every output belongs to ``classes_[j]``.
     models_ : list of SparseOnlineGP
         (c,) the one-vs-all regressors.
+    hyperparameters_ : list of Hyperparameters
+        (c,) the evidence optimum each GP was built with (not saved in a model file).
     """
 
     classes_: np.ndarray
@@ -118,9 +120,10 @@ class SOGPClassifier:
             labels = np.concatenate((labels, np.full(len(negatives), none, labels.dtype)))
         sub = balanced_subsample(labels, self.hyper_points, rng=rng)
         self.models_ = []
+        self.hyperparameters_ = []
         for c in self.classes_:
             t = np.where(labels == c, 1.0, -1.0)  # one-vs-all targets, Eq. (5.1)
-            ls, sf2, sn2 = fit_hyperparameters(
+            hp = fit_hyperparameters(
                 X[sub],
                 t[sub],
                 rng=rng,
@@ -128,8 +131,12 @@ class SOGPClassifier:
                 restarts=self.restarts,
                 max_length_scale=self.max_length_scale,
             )
+            self.hyperparameters_.append(hp)
             gp = SparseOnlineGP(
-                capacity=self.capacity, length_scales=ls, signal_var=sf2, noise_var=sn2
+                capacity=self.capacity,
+                length_scales=hp.length_scales,
+                signal_var=hp.signal_var,
+                noise_var=hp.noise_var,
             )
             order = rng.permutation(X.shape[0])
             gp.fit(X[order], t[order])

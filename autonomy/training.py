@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 from sklearn.mixture import BayesianGaussianMixture
 
-from autonomy.features import FeatureScaler, encode
+from autonomy.features import ENCODED_NAMES, FeatureScaler, encode, task_features
 from autonomy.model import FORMAT_VERSION, ContextualModel, platform_version
 from autonomy.sogp import MAX_LENGTH_SCALE
 from autonomy.sogp_classifier import SOGPClassifier
@@ -36,7 +36,10 @@ class TrainSettings:
     hyper_restarts: int = 2  # L-BFGS-B runs per cluster
     gmr_k: int = 10  # neighbours of the fast online GMR (thesis Sec. 7.4.4)
     covariance_reg: float = 1e-2  # added to the primitives' covariance diagonal (std. units)
-    max_length_scale: float = MAX_LENGTH_SCALE  # SOGP length-scale cap (std. units)
+    max_length_scale: float = MAX_LENGTH_SCALE  # SOGP length-scale bound (std. units)
+    candidates: int = 10  # nearest components a tick's hard negatives come from (the mode's)
+    negatives_per_tick: int = 2  # other candidates per way point, target -1 in every GP
+    refine: bool = True  # re-estimate each GP on its basis after the online pass
 
     def __post_init__(self) -> None:
         for name in (
@@ -50,6 +53,7 @@ class TrainSettings:
             "hyper_points",
             "hyper_restarts",
             "gmr_k",
+            "candidates",
         ):
             value = getattr(self, name)
             if not (isinstance(value, int) and value >= 1):
@@ -58,6 +62,11 @@ class TrainSettings:
             raise ValueError(
                 f"training setting max_length_scale: must be a number > 0.01, got "
                 f"{self.max_length_scale!r}"
+            )
+        if not (isinstance(self.negatives_per_tick, int) and self.negatives_per_tick >= 0):
+            raise ValueError(
+                "training setting negatives_per_tick: must be an integer >= 0, got "
+                f"{self.negatives_per_tick!r}"
             )
         if not (0.0 <= self.min_cluster_share < 1.0):
             raise ValueError(
@@ -152,8 +161,60 @@ def way_points(n: int, run: np.ndarray | None, stride: int) -> np.ndarray:
     return np.flatnonzero((np.arange(n) - first) % stride == 0)
 
 
+@dataclass(frozen=True, slots=True)
+class DemoCandidates:
+    """The semantic components around every demonstrated tick (robot frame).
+
+    ``points[offsets[i]:offsets[i + 1]]`` (k_i, 2) [m] are tick ``i``'s candidates'
+    target points with their ``ids``; ``target`` (n,) is the demonstrated component.
+    """
+
+    points: np.ndarray  # (m, 2) [m]
+    offsets: np.ndarray  # (n + 1,) int
+    ids: np.ndarray  # (m,) str
+    target: np.ndarray  # (n,) str
+
+
+def negative_features(
+    q: np.ndarray,
+    rows: np.ndarray,
+    candidates: DemoCandidates,
+    *,
+    settings: TrainSettings,
+    rng: np.random.Generator,
+) -> np.ndarray:
+    """Hard negatives: task features (Sec. 6.1) of components the driver did not target.
+
+    At every tick of ``rows``, up to ``negatives_per_tick`` of the ``candidates`` nearest
+    components (the mode's candidate set, Sec. 5.1) other than the demonstrated one, drawn
+    at random, each with the tick's command ``q[i, 3:6]``.
+
+    Returns
+    -------
+    numpy.ndarray
+        (k, 6) task features.
+    """
+    off, pts, ids = candidates.offsets, candidates.points, candidates.ids
+    out: list[np.ndarray] = []
+    for i in np.asarray(rows):
+        a, b = int(off[i]), int(off[i + 1])
+        near = a + np.argsort(np.einsum("ij,ij->i", pts[a:b], pts[a:b]), kind="stable")
+        near = near[: settings.candidates]
+        wrong = near[ids[near] != candidates.target[i]]
+        if len(wrong) > settings.negatives_per_tick:
+            wrong = rng.choice(wrong, size=settings.negatives_per_tick, replace=False)
+        if len(wrong):
+            out.append(task_features(pts[np.sort(wrong)], q[i, 3:6]))
+    return np.concatenate(out) if out else np.zeros((0, 6))
+
+
 def fit_classifier(
-    Z: np.ndarray, labels: np.ndarray, *, settings: TrainSettings, rng: np.random.Generator
+    Z: np.ndarray,
+    labels: np.ndarray,
+    *,
+    settings: TrainSettings,
+    rng: np.random.Generator,
+    negatives: np.ndarray | None = None,
 ) -> tuple[SOGPClassifier, list[float]]:
     """The SOGP classifier over the primitives.
 
@@ -174,8 +235,9 @@ def fit_classifier(
         hyper_points=settings.hyper_points,
         restarts=settings.hyper_restarts,
         max_length_scale=settings.max_length_scale,
+        refine=settings.refine,
     )
-    clf.fit(Z, labels, rng=rng)
+    clf.fit(Z, labels, rng=rng, negatives=negatives)
     for c, gp in zip(clf.classes_, clf.models_, strict=True):
         if not (np.all(np.isfinite(gp.alpha_)) and np.all(np.isfinite(gp.C_))):
             raise ValueError(
@@ -213,6 +275,7 @@ def train(
     task: np.ndarray | None = None,
     source: str = "",
     run: np.ndarray | None = None,
+    candidates: DemoCandidates | None = None,
 ) -> ContextualModel:
     """Train a contextual-task model on unlabelled task features.
 
@@ -237,6 +300,10 @@ def train(
         Where the data came from (stored in the metadata).
     run : numpy.ndarray, optional
         (n,) run index of every row (rows of a run contiguous), for the way-point stride.
+    candidates : DemoCandidates, optional
+        The components around every row: the classifier learns the other components'
+        features as hard negatives (:func:`negative_features`); without them it sees
+        only the demonstrated targets.
 
     Returns
     -------
@@ -253,9 +320,44 @@ def train(
     labels, info = cluster_dpgmm(Z, settings=settings, rng=rng, fit_rows=wp)
     c = int(labels.max()) + 1
     means, covs, gmr_points, offsets = _primitive_statistics(q, Z, labels, settings)
-    classifier, tols = fit_classifier(Z[wp], labels[wp], settings=settings, rng=rng)
+    negatives = None
+    if candidates is not None and settings.negatives_per_tick > 0:
+        negatives = scaler.transform(
+            encode(negative_features(q, wp, candidates, settings=settings, rng=rng))
+        )
+    classifier, tols = fit_classifier(
+        Z[wp], labels[wp], settings=settings, rng=rng, negatives=negatives
+    )
+    info["negatives"] = 0 if negatives is None else int(len(negatives))
+    info["truncation"] = int(settings.max_components)
     info["novelty_tol"] = tols
     info["way_points"] = int(len(wp))
+    metadata = _metadata(q, labels, task, classifier, info, settings, seed=seed, source=source)
+    return ContextualModel.with_classifier(
+        classifier,
+        scaler=scaler,
+        cluster_ids=np.arange(c, dtype=np.int64),
+        cluster_means=means,
+        cluster_covariances=covs,
+        gmr_points=gmr_points,
+        gmr_offsets=offsets,
+        metadata=metadata,
+    )
+
+
+def _metadata(
+    q: np.ndarray,
+    labels: np.ndarray,
+    task: np.ndarray | None,
+    classifier: SOGPClassifier,
+    info: dict[str, Any],
+    settings: TrainSettings,
+    *,
+    seed: int,
+    source: str,
+) -> dict[str, Any]:
+    """The model's metadata: versions, date, data hash, settings, the DP-GMM's ``info``,
+    the cluster summary, every GP's hyperparameters and (with ``task``) the purity."""
     metadata = {
         "format_version": FORMAT_VERSION,
         "platform_version": platform_version(),
@@ -267,17 +369,34 @@ def train(
         "settings": asdict(settings),
         "dpgmm": info,
         "clusters": cluster_summary(labels, task),
+        "hyperparameters": [_hyper_summary(hp) for hp in classifier.hyperparameters_],
     }
-    return ContextualModel.with_classifier(
-        classifier,
-        scaler=scaler,
-        cluster_ids=np.arange(c, dtype=np.int64),
-        cluster_means=means,
-        cluster_covariances=covs,
-        gmr_points=gmr_points,
-        gmr_offsets=offsets,
-        metadata=metadata,
-    )
+    if task is not None:
+        metadata["purity"] = round(cluster_purity(labels, np.asarray(task)), 4)
+    return metadata
+
+
+def _hyper_summary(hp: Any) -> dict[str, Any]:
+    """A GP's learnt hyperparameters for the model's metadata (JSON)."""
+    return {
+        "length_scales": [round(float(v), 6) for v in hp.length_scales],
+        "signal_var": round(float(hp.signal_var), 6),
+        "noise_var": round(float(hp.noise_var), 8),
+        "log_evidence": round(float(hp.log_evidence), 3),
+        "binding": list(hp.binding),
+        "switched_off": [int(j) for j in hp.switched_off],
+    }
+
+
+def cluster_purity(labels: np.ndarray, task: np.ndarray) -> float:
+    """Purity of the primitives with respect to the true task types: the share of points
+    whose primitive's most common task type is their own (1 = every primitive holds one
+    task type). ``labels`` and ``task`` (n,)."""
+    total = 0
+    for c in np.unique(labels):
+        _, counts = np.unique(task[labels == c], return_counts=True)
+        total += int(counts.max())
+    return total / len(labels)
 
 
 def _checked_features(q: np.ndarray, task: np.ndarray | None) -> np.ndarray:
@@ -433,15 +552,36 @@ def _synthetic_stick(
 
 
 def format_summary(model: ContextualModel) -> str:
-    """A human-readable cluster summary (one line per primitive)."""
+    """What ``asa train`` prints: the DP-GMM's occupancy against its truncation, the
+    primitives with their sizes, task shares and purity, and every GP's learnt
+    hyperparameters (length scales in standard deviations of the encoded columns, ``off``
+    for a switched-off dimension) with the bounds that bind."""
     meta = model.metadata
     info = meta.get("dpgmm", {})
+    used, cap = info.get("components", "?"), info.get("truncation", "?")
     lines = [
-        f"{meta.get('n_points', '?')} points; DP-GMM used {info.get('components', '?')} "
-        f"components, {info.get('dropped', 0)} tiny ones merged "
+        f"{meta.get('n_points', '?')} points, {info.get('way_points', '?')} way points, "
+        f"{info.get('negatives', 0)} hard negatives",
+        f"DP-GMM: {used} of {cap} components occupied"
+        + (" (the truncation binds)" if used == cap else "")
+        + f"; {info.get('dropped', 0)} below the size floor merged "
         f"({info.get('merged_points', 0)} points); {model.n_clusters} primitives",
     ]
+    if "purity" in meta:
+        lines.append(f"purity against the demonstrated task types: {meta['purity']:.2f}")
     for entry in meta.get("clusters", []):
         shares = ", ".join(f"{t} {100 * s:.0f}%" for t, s in entry.get("task_share", {}).items())
         lines.append(f"  {entry['name']:>12}: {entry['size']:6d} points  {shares}")
+    names = ENCODED_NAMES
+    lines.append("hyperparameters (Eq. 5.11): length scales " + " ".join(names))
+    for entry, hp in zip(meta.get("clusters", []), meta.get("hyperparameters", []), strict=False):
+        ls = [
+            "off" if j in hp["switched_off"] else f"{v:.3g}"
+            for j, v in enumerate(hp["length_scales"])
+        ]
+        binding = ", ".join(hp["binding"]) or "none"
+        lines.append(
+            f"  {entry['name']:>12}: {' '.join(ls)}; signal {hp['signal_var']:.3g}, "
+            f"noise {hp['noise_var']:.3g}; bounds binding: {binding}"
+        )
     return "\n".join(lines)

@@ -87,7 +87,7 @@ def test_recognises_the_doorway_the_input_heads_to(mode):
     assist = mode.step(obs, u * np.array([1.0, 1.0, ROBOT.max_yaw_rate]))
     assert assist.target == ahead.id
     assert assist.scores[ahead.id] == max(assist.scores.values())
-    assert assist.label.startswith("primitive_") and assist.beta > 0.5
+    assert assist.label == "doorway_crossing" and assist.beta > 0.5
     assert len(assist.predicted_path) > 0
     # the predicted path heads towards the doorway, and so does g
     end = assist.predicted_path[-1, :2]
@@ -330,12 +330,12 @@ def test_scalar_gmr_prediction_equals_the_array_one(rng):
     np.testing.assert_allclose(dup.predict_xy(0.3, -0.2), np.ones(3))
 
 
-def test_label_tasks_name_each_primitive_by_its_dominant_task_type():
+def test_labels_are_task_types_that_mean_themselves():
     from autonomy.modes import make_mode
-    from tasks.contextual import DEMONSTRATED
+    from tasks.contextual import TASK_TYPES
 
     mode = make_mode("contextual_task")
     table = mode.label_tasks()
-    names = set(mode.runtime_.names)
-    assert set(table) == names and set(table.values()) <= set(DEMONSTRATED)
+    assert set(table) <= set(TASK_TYPES) and all(k == v for k, v in table.items())
+    assert set(mode.motions_.values()) <= set(TASK_TYPES)  # every primitive has a motion
     assert make_mode("contextual_task", model_path="").label_tasks() == {}

@@ -30,6 +30,7 @@ from autonomy.local_gmr import local_gmm
 from autonomy.model import DEFAULT_MODEL, GMR_INPUT, load_model
 from autonomy.safety import safe_command
 from autonomy.sogp_classifier import argmax_finite
+from autonomy.task_types import contextual_task, primitive_motions
 from autonomy.tracking import track
 from autonomy.types import RobotModel
 from sim.types import SemanticComponent
@@ -214,7 +215,9 @@ class _Reference:
                 v, beta = v_user, 0.0
         best = mean.max(axis=1)
         scores = {str(components[int(k)].id): float(best[n]) for n, k in enumerate(chosen)}
-        label = self.names[self.row[cluster]]
+        # the label names the contextual task (autonomy.task_types), not the primitive
+        motion = primitive_motions(self.model.metadata.get("clusters", [])).get(cluster, "")
+        label = contextual_task(str(component.kind), motion)
         return v, g, beta, label, str(component.id), scores, path
 
 

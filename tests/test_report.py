@@ -80,7 +80,10 @@ def test_apa_sentence_per_metric_and_results_json(study_db, report):
     paths, _, _ = report
     html = paths.html.read_text(encoding="utf-8")
     results = json.loads(paths.results_json.read_text())
-    assert list(results) == list(paths.metrics)
+    # one ANOVA object per analysed metric; the recognition is described under its own key
+    assert list(results) == [*paths.metrics, "recognition"]
+    assert not any(BY_NAME[m].descriptive for m in paths.metrics)
+    results.pop("recognition")
     frames = tidy(load_study(study_db))
     for name, stored in results.items():
         assert str(escape(apa_anova(stored))) in html
@@ -92,6 +95,23 @@ def test_apa_sentence_per_metric_and_results_json(study_db, report):
     # the incomplete participant is dropped listwise, and the warning reaches the report
     assert results["completion_time_s"]["dropped_subjects"] == ["P07"]
     assert "P07" in html
+
+
+def test_recognition_is_described_from_the_samples(report):
+    paths, out, _ = report
+    rec = json.loads(paths.results_json.read_text())["recognition"]
+    # the fixture stores primitive labels and label_tasks, no recognition in the outcome
+    assert list(rec) == ["contextual_task"]
+    d = rec["contextual_task"]
+    assert d["sources"] == {"samples": d["trials"]} and d["trials"] == SETTINGS.n_participants
+    assert d["labelled_ticks"] == SETTINGS.n_participants * SETTINGS.samples
+    assert d["task_target_matches"] <= d["task_matches"] <= d["labelled_ticks"] - d["null_ticks"]
+    html = paths.html.read_text(encoding="utf-8")
+    assert "Recognition in the loop" in html and "re-derived from the samples" in html
+    per_task = np.loadtxt(
+        out / "tables" / "recognition_per_task.csv", delimiter=",", skiprows=1, usecols=(2,)
+    )
+    assert per_task.sum() == d["labelled_ticks"]
 
 
 def test_effects_in_the_right_direction(report):

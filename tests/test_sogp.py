@@ -15,7 +15,7 @@ from autonomy.gp_hyperparameters import (
     initial_log_params,
     log_evidence,
 )
-from autonomy.sogp import SparseOnlineGP
+from autonomy.sogp import MAX_LENGTH_SCALE, SparseOnlineGP
 from autonomy.sogp_classifier import (
     SOGPClassifier,
     balanced_subsample,
@@ -350,7 +350,8 @@ def test_fit_hyperparameters_improves_the_evidence(rng):
     X = rng.uniform(-2.0, 2.0, size=(120, 2))
     y = np.sin(2.0 * X[:, 0]) + 0.1 * rng.normal(size=120)
     # a wide length-scale cap (the default 0.5 std is for the recogniser, see sogp.py)
-    ls, sf2, sn2 = fit_hyperparameters(X, y, rng=rng, restarts=2, max_length_scale=100.0)
+    hp = fit_hyperparameters(X, y, rng=rng, restarts=2, max_length_scale=100.0)
+    ls, sf2, sn2 = hp.length_scales, hp.signal_var, hp.noise_var
     theta = np.log(np.r_[ls, sf2, sn2])
     start = initial_log_params(X, y)
     assert log_evidence(theta, X, y)[0] >= log_evidence(start, X, y)[0]
@@ -489,17 +490,35 @@ def test_predict_mean_equals_predict(rng):
     np.testing.assert_allclose(gp.predict_mean(Xq), after[0], atol=1e-12)
 
 
-def test_default_length_scale_cap_is_half_a_standard_deviation(rng):
-    # With the old cap (100 std) the recogniser's GPs ignored the target point and the
-    # demonstrated target won 5-20 % of the ticks; the cap must stay short (sogp.py).
-    X = rng.normal(size=(80, 3)) * np.array([1.0, 5.0, 0.2])
-    y = np.sign(X[:, 0])
-    ls, _, _ = fit_hyperparameters(X, y, rng=rng, restarts=1)
-    assert np.all(ls <= 0.5 * X.std(axis=0) * (1 + 1e-9))
-    for (_lo, hi), sd in zip(hyperparameter_bounds(X, y)[:3], X.std(axis=0), strict=True):
-        assert np.exp(hi) == pytest.approx(0.5 * sd)
+def test_evidence_keeps_the_relevant_dimension_and_switches_off_the_others(rng):
+    # ARD (Eq. 5.11): the label depends on column 0 only; the evidence makes its length
+    # scale short and lets the others grow, which the result reports as switched off (or
+    # binding, never silently at the bound).
+    X = rng.normal(size=(120, 3)) * np.array([1.0, 5.0, 0.2])
+    y = np.tanh(2.0 * X[:, 0]) + 0.1 * rng.normal(size=120)
+    hp = fit_hyperparameters(X, y, rng=rng, restarts=2)
+    ls = hp.length_scales / X.std(axis=0)
+    assert ls[0] < 5.0 and ls[0] < ls[1] and ls[0] < ls[2]
+    bounds = hyperparameter_bounds(X, y)
+    for j in range(3):
+        at_hi = np.log(hp.length_scales[j]) >= bounds[j][1] - 1e-6
+        assert not at_hi or j in hp.switched_off or f"length_scale_{j}" in hp.binding
+    for (_lo, hi), sd in zip(bounds[:3], X.std(axis=0), strict=True):
+        assert np.exp(hi) == pytest.approx(MAX_LENGTH_SCALE * sd)
     with pytest.raises(ValueError, match="max_length_scale"):
         hyperparameter_bounds(X, y, max_length_scale=0.0)
+
+
+def test_binding_bounds_names_parameters_the_gradient_pushes_out():
+    from autonomy.gp_hyperparameters import BINDING_GRADIENT, binding_bounds
+
+    bounds = [(-1.0, 1.0)] * 4  # two length scales, signal, noise
+    theta = np.array([1.0, 1.0, 0.0, -1.0])
+    flat = BINDING_GRADIENT / 2
+    grad = np.array([flat, 1.0, 0.0, -1.0])  # ls0 flat at the top, ls1 pushes, noise pushes
+    binding, off = binding_bounds(theta, grad, bounds)
+    assert binding == ("length_scale_1", "noise_var") and off == (0,)
+    assert binding_bounds(np.zeros(4), np.ones(4), bounds) == ((), ())  # interior: nothing
 
 
 @pytest.mark.slow  # ~4 s alone (capacity 500, 3000 points: what reproduces the failure)

@@ -1,7 +1,8 @@
 """From the raw tables to the tidy frames of the report (thesis Sec. 7.6.1.3, 7.6.2, 7.5).
 
 One row per counted main trial with every metric of :mod:`analysis.metrics`, one row per
-secondary question (main trials and the baseline block), one row per questionnaire answer.
+secondary question (main trials and the baseline block), one row per questionnaire answer,
+one row per trial and true task type of the in-the-loop recognition (issue 16).
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ import numpy as np
 import pandas as pd
 
 from analysis.data.load import AnalysisConfig, StudyData
+from analysis.data.recognition import per_trial, recognition_counts
 from questionnaires import nasa_tlx
 
 BASELINE = "baseline"
@@ -37,6 +39,10 @@ class Frames:
         ``order``, ``main_trials`` (counted), ``complete`` (one per mode).
     aborted : one row per main trial not counted: ``participant``, ``mode``, ``ordinal``,
         ``attempt``, ``status``, ``reason``.
+    recognition : in-the-loop recognition of counted trials, one row per (trial, true task
+        type) with labelled ticks: ``trial_id``, ``participant``, ``mode``, ``task``, the
+        counts of :data:`analysis.data.recognition.COUNTS` and ``source`` ("outcome" or
+        "samples"); empty when no mode recognises tasks or no driver reported intentions.
     modes : the mode levels in report order (protocol order).
     warnings : notes for the report's data-quality section.
     """
@@ -46,6 +52,7 @@ class Frames:
     responses: pd.DataFrame
     participants: pd.DataFrame
     aborted: pd.DataFrame
+    recognition: pd.DataFrame
     modes: tuple[str, ...]
     warnings: tuple[str, ...] = ()
 
@@ -96,11 +103,8 @@ def _tlx_scores(responses: pd.DataFrame, trial_ids: list[int], last_trial: dict)
     return pd.DataFrame(rows)
 
 
-def _sample_metrics(
-    samples: pd.DataFrame, label_tasks: dict[int, dict[str, str]] | None = None
-) -> pd.DataFrame:
-    """Per trial_id: assist_share, beta_mean, clearance from samples, recognition_accuracy
-    (only for trials in ``label_tasks``: trial id -> {label -> task type})."""
+def _sample_metrics(samples: pd.DataFrame) -> pd.DataFrame:
+    """Per trial_id: assist_share, beta_mean, clearance from samples, n_samples."""
     if samples.empty:
         return pd.DataFrame(
             columns=[
@@ -110,27 +114,16 @@ def _sample_metrics(
                 "sample_clearance_mean_m",
                 "sample_clearance_min_m",
                 "clearance_std_m",
-                "recognition_accuracy",
                 "n_samples",
             ]
         )
     s = samples
-    label_tasks = label_tasks or {}
-    truth = s["true_task"] != ""
-    recognised = pd.Series("", index=s.index, dtype=object)
-    for tid, table in label_tasks.items():
-        rows = s["trial_id"] == tid
-        recognised[rows] = s.loc[rows, "label"].map(table).fillna("")
-    hit = (recognised == s["true_task"]) & (s["target"] == s["true_target"]) & truth
     work = pd.DataFrame(
         {
             "trial_id": s["trial_id"].astype(int),
             "assisted": (s["beta"].astype(float) > ASSIST_THRESHOLD).astype(float),
             "beta": s["beta"].astype(float),
             "clearance": s["min_clearance_m"].astype(float),
-            "truth": truth.astype(float),
-            "hit": hit.astype(float),
-            "labelled": ((s["label"] != "") & s["trial_id"].isin(list(label_tasks))).astype(float),
         }
     )
     g = work.groupby("trial_id")
@@ -141,15 +134,10 @@ def _sample_metrics(
             "sample_clearance_mean_m": g["clearance"].mean(),
             "sample_clearance_min_m": g["clearance"].min(),
             "clearance_std_m": g["clearance"].std(ddof=1),
-            "n_truth": g["truth"].sum(),
-            "n_hit": g["hit"].sum(),
-            "n_labelled": g["labelled"].sum(),
             "n_samples": g["beta"].size(),
         }
     )
-    ok = (out["n_truth"] > 0) & (out["n_labelled"] > 0)
-    out["recognition_accuracy"] = np.where(ok, out["n_hit"] / out["n_truth"].where(ok, 1), np.nan)
-    return out.drop(columns=["n_truth", "n_hit", "n_labelled"]).reset_index()
+    return out.reset_index()
 
 
 def secondary_metrics(questions: pd.DataFrame, by: str) -> pd.DataFrame:
@@ -198,7 +186,7 @@ def tidy(data: StudyData) -> Frames:
     aborted = _aborted(main, counted)
     modes = _mode_levels(data.config, list(dict.fromkeys(counted["mode"])))
     frame = _trial_frame(counted, data.config.collision_penalty_s)
-    frame, warnings = _with_sample_metrics(frame, counted, t["sample"])
+    frame, recognition, warnings = _with_sample_metrics(frame, counted, t["sample"], data.source)
     level_of = _levels_of_trials(trials, frame)
     questions = _questions(trials, t["question"], level_of)
     frame = _with_secondary(frame, questions)
@@ -215,6 +203,7 @@ def tidy(data: StudyData) -> Frames:
         responses=responses,
         participants=_participants(people, frame, modes),
         aborted=aborted,
+        recognition=recognition,
         modes=modes,
         warnings=tuple(warnings),
     )
@@ -287,25 +276,28 @@ def _trial_frame(counted: pd.DataFrame, collision_penalty_s: float) -> pd.DataFr
 
 
 def _with_sample_metrics(
-    frame: pd.DataFrame, counted: pd.DataFrame, sample: pd.DataFrame
-) -> tuple[pd.DataFrame, list[str]]:
-    """The trial frame with the metrics of its samples, and a warning for trials without."""
+    frame: pd.DataFrame, counted: pd.DataFrame, sample: pd.DataFrame, source: str
+) -> tuple[pd.DataFrame, pd.DataFrame, list[str]]:
+    """The trial frame with the metrics of its samples and its recognition accuracy, the
+    recognition counts (:attr:`Frames.recognition`), and a warning for trials without
+    samples."""
     samples = sample[sample["trial_id"].isin(set(frame["trial_id"]))]
-    label_tasks = {
-        int(tid): dict(o["label_tasks"])
-        for tid, o in zip(counted["id"], counted["outcome"], strict=True)
-        if isinstance(o, dict) and isinstance(o.get("label_tasks"), dict)
-    }
-    frame = frame.merge(_sample_metrics(samples, label_tasks), on="trial_id", how="left")
+    frame = frame.merge(_sample_metrics(samples), on="trial_id", how="left")
     frame["clearance_mean_m"] = frame["clearance_mean_m"].fillna(frame["sample_clearance_mean_m"])
     frame["clearance_min_m"] = frame["clearance_min_m"].fillna(frame["sample_clearance_min_m"])
     frame = frame.drop(columns=["sample_clearance_mean_m", "sample_clearance_min_m"])
     frame["n_samples"] = frame["n_samples"].fillna(0).astype(int)
+    counts = recognition_counts(counted["id"], counted["outcome"], samples, source=source)
+    accuracy = per_trial(counts)[["trial_id", "loop_task_target_match"]]
+    frame = frame.merge(accuracy, on="trial_id", how="left")
+    frame = frame.rename(columns={"loop_task_target_match": "recognition_accuracy"})
+    who = frame[["trial_id", "participant", "mode"]]
+    counts = who.merge(counts, on="trial_id", how="inner")
     warnings: list[str] = []
     if (frame["n_samples"] == 0).any():
         missing = frame.loc[frame["n_samples"] == 0, "participant"].tolist()
         warnings.append(f"main trials without samples (participants {', '.join(missing)})")
-    return frame, warnings
+    return frame, counts, warnings
 
 
 def _levels_of_trials(trials: pd.DataFrame, frame: pd.DataFrame) -> dict[int, str]:

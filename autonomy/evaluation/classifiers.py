@@ -239,3 +239,17 @@ def recognise(
     S = np.full((len(Z_cand), len(fitted.task_classes)), np.nan)
     S[rows] = fitted.task_scores(Z_cand[rows])
     return _decide(S, offsets, ticks)
+
+
+def most_probable(
+    fitted: FittedClassifier, Z_cand: np.ndarray, offsets: np.ndarray, ticks: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Eq. (5.8) per tick of ``ticks`` without abstaining: (the most probable candidate
+    row, its task-class column) by ``fitted``'s scores of the task classes, claim
+    thresholds and the "none" class ignored; row -1 only for a tick without candidates.
+    """
+    rows = _candidate_rows(offsets, ticks)
+    S = np.full((len(Z_cand), len(fitted.task_classes)), np.nan)
+    scores = np.asarray(fitted.scores(Z_cand[rows]), dtype=float)
+    S[rows] = scores if fitted.task_cols is None else scores[:, fitted.task_cols]
+    return _decide(S, offsets, ticks)

@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 from autonomy.evaluation.folds import check_demonstrations, prepare_data
-from autonomy.evaluation.jobs import run_job
+from autonomy.evaluation.jobs import run_numbered_job
 from autonomy.evaluation.report import pool_results
 from autonomy.evaluation.settings import EvaluationSettings
 
@@ -24,11 +24,13 @@ def evaluate(
     model: str = "",
     where: str = "demonstrations",
     map_fn: Callable[[Callable[[Any], Any], Iterable[Any]], Iterable[Any]] = map,
+    progress: Callable[[int, int], None] | None = None,
 ) -> dict[str, Any]:
     """Cross-validated recognition quality on demonstrations (thesis Sec. 7.2.2, 7.3,
-    7.4): F0.5 by cross-validation by run of the SOGP classifier and three baselines,
-    the introspection entropy of every pair of task types, and the trajectory rates of
-    three recognisers.
+    7.4): F0.5, ACR and MICAD by cross-validation by run of the SOGP classifier and three
+    baselines, their introspection entropy (mean, histogram) and MICAD on unseen task
+    types for every training pair of task types, and the trajectory rates of three
+    recognisers.
 
     Parameters
     ----------
@@ -46,17 +48,24 @@ def evaluate(
         Names the demonstrations in error messages.
     map_fn : callable, optional
         ``map``-like: applied to the independent jobs (one per fold, one per
-        introspection pair) and returning their results in order; e.g. a process
-        pool's ``map``. The result does not depend on it: every job draws from its own
-        ``numpy.random.SeedSequence`` spawned from ``settings.seed``.
+        introspection pair), returning one result per job in any order (a process
+        pool's ``map``, or an iterator over its jobs as they complete). The result does
+        not depend on it: every job draws from its own ``numpy.random.SeedSequence``
+        spawned from ``settings.seed``.
+    progress : callable, optional
+        ``progress(done, total)``, called once per job as ``map_fn`` hands back its
+        result: ``done`` = 1, 2, ..., ``total`` (folds + pairs).
 
     Returns
     -------
     dict
-        ``f05``, ``sogp_at_least_baselines``, ``confusion``, ``introspection_entropy``,
-        ``introspection_pairs``, ``negatives``, ``sogp_length_scale_cap``,
-        ``sogp_claim_threshold``, ``trajectory_rates``, ``n_runs``, ``n_test_ticks``,
-        ``folds``, ``seed``, ``model``, ``labels``, ``timings_s``.
+        ``f05``, ``sogp_at_least_baselines``, ``confusion``, ``acr``, ``micad``,
+        ``correspondence_rates``, ``introspection_entropy``, ``introspection_pairs``,
+        ``introspection_histogram``, ``introspection_micad``,
+        ``introspection_micad_pairs``, ``sogp_entropy_rank``, ``negatives``,
+        ``sogp_length_scale_cap``, ``sogp_claim_threshold``, ``trajectory_rates``,
+        ``n_runs``, ``n_test_ticks``, ``folds``, ``seed``, ``model``, ``labels``,
+        ``timings_s`` (meanings: :func:`autonomy.evaluation.report.pool_results`).
 
     Raises
     ------
@@ -78,7 +87,11 @@ def evaluate(
     seeds = root.spawn(settings.folds + len(pairs))
     jobs = [("fold", data, k, seeds[k]) for k in range(settings.folds)]
     jobs += [("pair", data, p, seeds[settings.folds + i]) for i, p in enumerate(pairs)]
-    results = list(map_fn(run_job, jobs))
+    results: list[Any] = [None] * len(jobs)
+    for done, (i, result) in enumerate(map_fn(run_numbered_job, enumerate(jobs)), start=1):
+        results[i] = result
+        if progress is not None:
+            progress(done, len(jobs))
     return pool_results(
         results[: settings.folds],
         results[settings.folds :],

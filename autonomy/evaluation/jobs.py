@@ -1,10 +1,10 @@
-"""The independent jobs of the offline evaluation (thesis Sec. 7.2.2, 7.3): a held-out
-fold (classification and trajectory rates) and an introspection pair of task types."""
+"""The independent jobs of the offline evaluation (thesis Sec. 7.2.2, 7.3, 7.4): a
+held-out fold (classification, correspondence and trajectory rates) and an introspection
+pair of task types (:mod:`autonomy.evaluation.introspection`)."""
 
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -12,14 +12,16 @@ import numpy as np
 
 from autonomy.baseline_recogniser import ExponentialBaseline
 from autonomy.bayes_filter import BayesFilterRecogniser, fit_user_models, target_features
-from autonomy.evaluation.classifiers import FittedClassifier, fit_method, recognise
+from autonomy.evaluation.classifiers import FittedClassifier, fit_method, most_probable, recognise
+from autonomy.evaluation.correspondence import correspondence_rates, intra_cluster_dissimilarity
 from autonomy.evaluation.folds import EvaluationData, hard_negatives, way_points_of
+from autonomy.evaluation.introspection import pair_job
 from autonomy.evaluation.metrics import trajectory_rates
-from autonomy.evaluation.settings import METHODS, RECOGNISERS, EvaluationSettings
+from autonomy.evaluation.settings import METHODS, RECOGNISERS
 from autonomy.features import FeatureScaler
-from autonomy.sogp_classifier import normalised_entropy
 
 Decision = tuple[str, str] | None  # (task type, component id), None: no decision
+Job = tuple[str, EvaluationData, Any, np.random.SeedSequence]
 
 
 @dataclass(frozen=True, slots=True)
@@ -29,20 +31,13 @@ class FoldResult:
     truth: list[str]  # (t,) true task type of every scored test tick
     pred: dict[str, list[str | None]]  # method -> (t,) predicted type, None: no prediction
     ok: dict[str, list[bool]]  # method -> (t,) whether the predicted target is right
+    cr: dict[str, dict[str, float]]  # method -> held-out run -> correspondence rate
+    icad: dict[str, np.ndarray]  # method -> (t,) ICAD of every test tick [standardised]
     cap: float  # the SOGP's length-scale cap [standard deviations]
     claim: dict[str, float]  # task type -> the SOGP's claim threshold
     rates: dict[str, list[dict[str, float]]]  # recogniser -> per held-out run's rates
     t_cls: float  # classification [s]
     t_rec: float  # trajectory rates [s]
-
-
-@dataclass(frozen=True, slots=True)
-class PairResult:
-    """Introspection of one training pair of task types."""
-
-    name: str  # "<type>+<type>"
-    entropy: dict[str, float]  # method -> mean normalised entropy (7.7) in [0, 1]
-    seconds: float
 
 
 @dataclass(frozen=True, slots=True)
@@ -57,15 +52,23 @@ class _FoldTraining:
     groups_neg: np.ndarray  # (k,) their runs
 
 
-def run_job(job: tuple[str, EvaluationData, Any, np.random.SeedSequence]) -> Any:
+def run_job(job: Job) -> Any:
     """Run one job of :func:`autonomy.evaluation.evaluate` (top level, so a process pool
     can pickle it): ``("fold", data, k, seed)`` or ``("pair", data, (a, b), seed)``."""
     kind, data, arg, seed = job
     return fold_job(data, arg, seed) if kind == "fold" else pair_job(data, arg, seed)
 
 
+def run_numbered_job(numbered: tuple[int, Job]) -> tuple[int, Any]:
+    """:func:`run_job` of ``(i, job)``, returning ``(i, result)``: a pool may hand the
+    results back in any order."""
+    i, job = numbered
+    return i, run_job(job)
+
+
 def fold_job(data: EvaluationData, k: int, seed: np.random.SeedSequence) -> FoldResult:
-    """Classification and trajectory rates of held-out fold ``k``."""
+    """Classification, correspondence (Sec. 7.4.1) and trajectory rates of held-out
+    fold ``k``."""
     # One generator each for the negatives, the user models and every classifier, so a
     # classifier's settings never change another's draws (e.g. the forests' seeds).
     neg_rng, user_rng, *method_rngs = np.random.default_rng(seed).spawn(2 + len(METHODS))
@@ -75,6 +78,8 @@ def fold_job(data: EvaluationData, k: int, seed: np.random.SeedSequence) -> Fold
     ticks = test_ticks[data.fold[test_ticks] == k]
     pred: dict[str, list[str | None]] = {}
     ok: dict[str, list[bool]] = {}
+    cr: dict[str, dict[str, float]] = {}
+    icad: dict[str, np.ndarray] = {}
     fitted: dict[str, FittedClassifier] = {}
     for method, method_rng in zip(METHODS, method_rngs, strict=True):
         f = fitted[method] = fit_method(
@@ -88,6 +93,7 @@ def fold_job(data: EvaluationData, k: int, seed: np.random.SeedSequence) -> Fold
             negative_groups=train.groups_neg,
         )
         pred[method], ok[method] = _classify(data, f, train.Z_cand, ticks)
+        cr[method], icad[method] = _correspondence(data, f, train, ticks)
     sogp = fitted["sogp"]
     t1 = time.perf_counter()
     rates = _fold_rates(data, k, sogp, train.Z_cand, user_rng)
@@ -95,6 +101,8 @@ def fold_job(data: EvaluationData, k: int, seed: np.random.SeedSequence) -> Fold
         truth=data.task[ticks].tolist(),
         pred=pred,
         ok=ok,
+        cr=cr,
+        icad=icad,
         cap=float(sogp.model.max_length_scale),
         claim={
             data.labels[int(c)]: float(t) for c, t in zip(sogp.classes, sogp.claim, strict=True)
@@ -127,6 +135,22 @@ def _fold_training(data: EvaluationData, k: int, neg_rng: np.random.Generator) -
         Z_neg=Zc[neg_rows],
         groups_neg=run[tick_of_cand[neg_rows]],
     )
+
+
+def _correspondence(
+    data: EvaluationData, f: FittedClassifier, train: _FoldTraining, ticks: np.ndarray
+) -> tuple[dict[str, float], np.ndarray]:
+    """CR of every held-out run and ICAD of every test tick (Sec. 7.4.1): the most
+    probable candidate (Eq. 5.8, never abstaining) against the demonstrated target, and
+    its feature's mean distance to the training way points of the task type it is
+    assigned to (the hard negatives belong to no cluster)."""
+    rows, cols = most_probable(f, train.Z_cand, data.off, ticks)
+    hit = (rows >= 0) & (data.ids[np.maximum(rows, 0)] == data.target[ticks])
+    found = rows >= 0
+    icad = intra_cluster_dissimilarity(
+        train.Z_cand[rows[found]], train.Z, train.y, f.task_classes[cols[found]]
+    )
+    return correspondence_rates(hit, data.run[ticks]), icad
 
 
 def _classify(
@@ -185,51 +209,3 @@ def _fold_rates(
         rates["bayes_filter"].append(trajectory_rates(dec_f, truth_r))
         rates["baseline"].append(trajectory_rates(dec_b, truth_r))
     return rates
-
-
-def pair_job(
-    data: EvaluationData, pair: tuple[int, int], seed: np.random.SeedSequence
-) -> PairResult:
-    """Introspection of one training pair of task types, timed."""
-    t0 = time.perf_counter()
-    name, h = introspect_pair(
-        data.X_true, data.y, data.run, data.labels, pair,
-        settings=data.settings, rng=np.random.default_rng(seed),
-    )  # fmt: skip
-    return PairResult(name=name, entropy=h, seconds=time.perf_counter() - t0)
-
-
-def introspect_pair(
-    X: np.ndarray,
-    y: np.ndarray,
-    run: np.ndarray,
-    labels: Sequence[str],
-    pair: tuple[int, int],
-    *,
-    settings: EvaluationSettings,
-    rng: np.random.Generator,
-) -> tuple[str, dict[str, float]]:
-    """Introspection (Sec. 7.3.2, Table 7.9) of one pair of task types: train on the
-    pair's way points (standardised on them), query with the other types' way points
-    (features against the demonstrated target); (``"<a>+<b>"``, method -> mean
-    normalised entropy (7.7) in [0, 1])."""
-    a, b = pair
-    wp = way_points_of(run, settings.stride)
-    train = wp[np.isin(y[wp], (a, b))]
-    test = wp[~np.isin(y[wp], (a, b))]
-    scaler = FeatureScaler().fit(X[train])
-    Ztr, Zte = scaler.transform(X[train]), scaler.transform(X[test])
-    h: dict[str, float] = {}
-    for method, method_rng in zip(METHODS, rng.spawn(len(METHODS)), strict=True):
-        f = fit_method(
-            method,
-            Ztr,
-            y[train],
-            run[train],
-            settings=settings,
-            rng=method_rng,
-            probability=True,
-            tune=False,
-        )
-        h[method] = float(np.mean(normalised_entropy(f.proba(Zte))))  # Eq. (7.7)
-    return f"{labels[a]}+{labels[b]}", h

@@ -1,5 +1,6 @@
 """The result of the offline evaluation (thesis Sec. 7.2.2, 7.3, 7.4): pooling the
-jobs' results, the summary over repeated seeds, and the tables for people."""
+jobs' results and the summary over repeated seeds (tables for people:
+:mod:`autonomy.evaluation.text`)."""
 
 from __future__ import annotations
 
@@ -8,7 +9,8 @@ from typing import Any
 
 import numpy as np
 
-from autonomy.evaluation.jobs import FoldResult, PairResult
+from autonomy.evaluation.introspection import PairResult, entropy_rank, pool_introspection
+from autonomy.evaluation.jobs import FoldResult
 from autonomy.evaluation.metrics import confusion_with_targets, f05_with_targets
 from autonomy.evaluation.settings import METHODS, RECOGNISERS, WRONG_TARGET, EvaluationSettings
 
@@ -23,15 +25,25 @@ def pool_results(
     model: str,
     total_s: float,
 ) -> dict[str, Any]:
-    """The result of :func:`autonomy.evaluation.evaluate` from its jobs' results (its
-    keys: see there); ``total_s`` is the wall clock [s]."""
+    """The result of :func:`autonomy.evaluation.evaluate` from its jobs' results;
+    ``total_s`` is the wall clock [s].
+
+    Its keys: ``f05`` (classifier -> task type or "macro" -> F0.5 with the right
+    target, Table 7.6); ``confusion``; ``acr`` (classifier -> mean over held-out runs of
+    the correspondence rate, Sec. 7.4.1), ``correspondence_rates`` (classifier -> run ->
+    CR), ``micad`` (classifier -> mean ICAD over test ticks, standardised feature units);
+    the introspection on unseen task types (:func:`~autonomy.evaluation.introspection.
+    pool_introspection`): ``introspection_entropy``, ``introspection_pairs``,
+    ``introspection_histogram``, ``introspection_micad``, ``introspection_micad_pairs``,
+    ``sogp_entropy_rank``; ``trajectory_rates`` (recogniser -> success, error, null);
+    the settings and sizes; ``timings_s``.
+    """
     truth = [t for r in per_fold for t in r.truth]
     pred = {m: [p for r in per_fold for p in r.pred[m]] for m in METHODS}
     ok = {m: [x for r in per_fold for x in r.ok[m]] for m in METHODS}
-    intro = {m: {p.name: p.entropy[m] for p in per_pair} for m in METHODS} if per_pair else {}
-    for m in intro:
-        intro[m]["mean"] = float(np.mean(list(intro[m].values())))
     f05 = {m: f05_with_targets(truth, pred[m], ok[m], labels) for m in METHODS}
+    cr = {m: {run: v for r in per_fold for run, v in r.cr[m].items()} for m in METHODS}
+    icad = {m: np.concatenate([r.icad[m] for r in per_fold]) for m in METHODS}
     return {
         "f05": f05,
         "sogp_at_least_baselines": {
@@ -45,10 +57,10 @@ def pool_results(
             }
             for m in METHODS
         },
-        "introspection_entropy": {m: v["mean"] for m, v in intro.items()},
-        "introspection_pairs": {
-            m: {p: x for p, x in v.items() if p != "mean"} for m, v in intro.items()
-        },
+        "acr": {m: float(np.mean(list(cr[m].values()))) for m in METHODS},  # Sec. 7.4.1
+        "micad": {m: float(np.mean(icad[m])) if len(icad[m]) else None for m in METHODS},
+        "correspondence_rates": cr,
+        **pool_introspection(per_pair),
         "negatives": bool(settings.negatives),
         "sogp_length_scale_cap": [r.cap for r in per_fold],
         "sogp_claim_threshold": [r.claim for r in per_fold],
@@ -80,6 +92,23 @@ def _mean_rates(per_fold: Sequence[FoldResult]) -> dict[str, dict[str, float]]:
     }
 
 
+def _spread(values: Sequence[float]) -> float:
+    """Sample standard deviation (ddof 1); 0 for a single value."""
+    return float(np.std(values, ddof=1)) if len(values) > 1 else 0.0
+
+
+def _mean_sd(results: Sequence[Mapping[str, Any]], key: str) -> tuple[dict, dict]:
+    """Mean and sd over ``results`` of ``result[key]`` -> {name -> number}; names with
+    a missing value (None) in some result are left out."""
+    names = list(results[0][key])
+    values = {n: [r[key][n] for r in results] for n in names}
+    values = {n: v for n, v in values.items() if all(x is not None for x in v)}
+    return (
+        {n: float(np.mean(v)) for n, v in values.items()},
+        {n: _spread(v) for n, v in values.items()},
+    )
+
+
 def summarise_repeats(results: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
     """Mean and spread of :func:`evaluate` results repeated with different seeds.
 
@@ -99,86 +128,33 @@ def summarise_repeats(results: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
         ``seeds``; ``f05_mean`` and ``f05_sd`` -> {classifier -> {task type or
         "macro" -> value}} (sample standard deviation, 0 for one result);
         ``sogp_at_least_baselines`` -> {task type or "macro" -> share of the results in
-        which the SOGP's F0.5 is at least every baseline's}; ``introspection_entropy_mean``
-        -> {classifier -> value}; ``trajectory_rates_mean`` -> {recogniser -> {success,
-        error, null}}.
+        which the SOGP's F0.5 is at least every baseline's}; ``acr_mean``, ``acr_sd``,
+        ``micad_mean``, ``micad_sd``, ``introspection_entropy_mean``,
+        ``introspection_entropy_sd``, ``introspection_micad_mean``,
+        ``introspection_micad_sd`` -> {classifier -> value}; ``sogp_entropy_rank``: the
+        SOGP's rank by the mean entropy over the seeds (1 the highest);
+        ``trajectory_rates_mean`` -> {recogniser -> {success, error, null}}.
     """
     if not results:
         raise ValueError("results: need at least one evaluation result")
     keys = list(results[0]["f05"][METHODS[0]])
-
-    def spread(values: list[float]) -> float:
-        return float(np.std(values, ddof=1)) if len(values) > 1 else 0.0
-
     f05 = {m: {c: [r["f05"][m][c] for r in results] for c in keys} for m in METHODS}
-    return {
+    out: dict[str, Any] = {
         "seeds": [int(r["seed"]) for r in results],
         "f05_mean": {m: {c: float(np.mean(v)) for c, v in f05[m].items()} for m in METHODS},
-        "f05_sd": {m: {c: spread(v) for c, v in f05[m].items()} for m in METHODS},
+        "f05_sd": {m: {c: _spread(v) for c, v in f05[m].items()} for m in METHODS},
         "sogp_at_least_baselines": {
             c: float(np.mean([r["sogp_at_least_baselines"][c] for r in results])) for c in keys
         },
-        "introspection_entropy_mean": {
-            m: float(np.mean([r["introspection_entropy"][m] for r in results]))
-            for m in results[0]["introspection_entropy"]
-        },
-        "trajectory_rates_mean": {
-            rec: {
-                k: float(np.mean([r["trajectory_rates"][rec][k] for r in results]))
-                for k in ("success", "error", "null")
-            }
-            for rec in results[0]["trajectory_rates"]
-        },
     }
-
-
-def format_report(result: Mapping[str, Any]) -> str:
-    """Human-readable tables of :func:`evaluate`'s result."""
-    labels = list(result["labels"])
-    lines = [
-        f"{result['n_runs']} runs, {result['folds']}-fold cross-validation by run, seed "
-        f"{result['seed']}; {result['n_test_ticks']} test ticks; model {result['model'] or '-'}",
-        "",
-        "F0.5 (right task type and right target among all candidates; thesis Table 7.6)",
-    ]
-    width = max(len(x) for x in [*labels, "macro"]) + 2
-    lines.append(" " * width + "".join(f"{m:>8}" for m in METHODS))
-    for c in [*labels, "macro"]:
-        lines.append(f"{c:<{width}}" + "".join(f"{result['f05'][m][c]:8.3f}" for m in METHODS))
-    for m in METHODS:
-        conf = result["confusion"][m]
-        lines += ["", f"confusion ({m}): rows true, columns predicted at the right target"]
-        cols = conf["columns"]
-        lines.append(" " * width + "".join(f"{c[:10]:>11}" for c in cols))
-        for name, row in zip(conf["rows"], conf["matrix"], strict=True):
-            lines.append(f"{name:<{width}}" + "".join(f"{v:11d}" for v in row))
-    means = result["introspection_entropy"]
-    if means:
-        intro = {m: {**result["introspection_pairs"][m], "mean": means[m]} for m in METHODS}
-        lines += ["", "introspection: mean normalised entropy on unseen task types (Table 7.9)"]
-        pairs = [p for p in intro[METHODS[0]] if p != "mean"]
-        pw = max(len(p) for p in [*pairs, "mean"]) + 2
-        lines.append(" " * pw + "".join(f"{m:>8}" for m in METHODS))
-        for p in [*pairs, "mean"]:
-            lines.append(f"{p:<{pw}}" + "".join(f"{intro[m][p]:8.3f}" for m in METHODS))
-    lines += ["", "trajectory rates on held-out runs (Sec. 7.2.2), mean over runs"]
-    lines.append(f"{'':<14}{'success':>9}{'error':>9}{'null':>9}")
-    for r, v in result["trajectory_rates"].items():
-        lines.append(f"{r:<14}{v['success']:9.3f}{v['error']:9.3f}{v['null']:9.3f}")
-    rep = result.get("repeats")
-    if rep:
-        seeds = rep["seeds"]
-        lines += [
-            "",
-            f"F0.5 over {len(seeds)} seeds ({', '.join(map(str, seeds))}): mean +- sd; "
-            "'sogp >=' is the share of seeds where the SOGP is at least every baseline",
-        ]
-        lines.append(" " * width + "".join(f"{m:>14}" for m in METHODS) + f"{'sogp >=':>9}")
-        for c in [*labels, "macro"]:
-            cells = "".join(
-                f"{rep['f05_mean'][m][c]:8.3f}+-{rep['f05_sd'][m][c]:.3f}" for m in METHODS
-            )
-            lines.append(f"{c:<{width}}{cells}{rep['sogp_at_least_baselines'][c]:9.2f}")
-    t = result["timings_s"]
-    lines += ["", f"time: {t['total']:.1f} s"]
-    return "\n".join(lines)
+    for key in ("acr", "micad", "introspection_entropy", "introspection_micad"):
+        out[f"{key}_mean"], out[f"{key}_sd"] = _mean_sd(results, key)
+    out["sogp_entropy_rank"] = entropy_rank(out["introspection_entropy_mean"])
+    out["trajectory_rates_mean"] = {
+        rec: {
+            k: float(np.mean([r["trajectory_rates"][rec][k] for r in results]))
+            for k in ("success", "error", "null")
+        }
+        for rec in results[0]["trajectory_rates"]
+    }
+    return out

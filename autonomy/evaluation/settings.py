@@ -5,7 +5,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from autonomy.sogp import MAX_LENGTH_SCALE
+from autonomy.training import TrainSettings
+
+_SHIPPED = TrainSettings()  # the SOGP is evaluated as `asa train` builds it
 
 METHODS: tuple[str, ...] = ("sogp", "svm", "knn", "rf")
 RECOGNISERS: tuple[str, ...] = ("sogp", "bayes_filter", "baseline")
@@ -20,18 +22,18 @@ class EvaluationSettings:
     seed: int = 0
     stride: int = 4  # training way points: every 4th moving tick (5 Hz)
     test_stride: int = 2  # classification scored on every 2nd held-out tick
-    capacity: int = 1200  # SOGP basis vectors per class
-    hyper_points: int = 1000  # class-balanced subsample for the GP evidence
-    hyper_restarts: int = 1
-    max_length_scale: float = MAX_LENGTH_SCALE
+    capacity: int = _SHIPPED.capacity  # SOGP basis vectors per class
+    hyper_points: int = _SHIPPED.hyper_points  # class-balanced subsample for the evidence
+    hyper_restarts: int = _SHIPPED.hyper_restarts
+    max_length_scale: float = _SHIPPED.max_length_scale
     inner_folds: int = 3  # grid search: StratifiedGroupKFold by run in the training fold
     rf_trees: int = 60
     negatives: bool = True  # hard negatives (other candidates) for every classifier
-    negatives_per_tick: int = 2  # wrong candidates drawn per training way point
-    sogp_length_scale_grid: tuple[float, ...] = (2.0,)  # inner-CV choice of the cap
+    negatives_per_tick: int = _SHIPPED.negatives_per_tick  # wrong candidates per way point
+    sogp_length_scale_grid: tuple[float, ...] = (_SHIPPED.max_length_scale,)  # inner-CV grid
     sogp_claim_grid: tuple[float, ...] = (0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6)  # per class
     sogp_inner_folds: int = 2
-    sogp_refine: bool = True  # re-estimate each GP on its basis after the online pass
+    sogp_refine: bool = _SHIPPED.refine  # re-estimate each GP on its basis after the pass
 
     def __post_init__(self) -> None:
         for name in (

@@ -25,6 +25,7 @@ GROUPS: dict[str, str] = {
     "ui": "study.bench.ui",
     "trial": "study.bench.trial",
     "synth": "study.bench.synth",
+    "recognition": "study.bench.recognition",
 }
 
 

@@ -2,14 +2,16 @@
 demonstrations (thesis Sec. 7.2.2, 7.3, 7.4; issue 3, "Offline evaluation").
 
 Click parsing around :func:`study.jobs.evaluation.run_evaluation`; prints tables
-(:func:`autonomy.evaluation.format_report`) or ``--json``, ``--out FILE`` also writes the
-JSON. Errors name the flags.
+(:func:`autonomy.evaluation.format_report`) or ``--json`` on stdout, ``--out FILE`` also
+writes the JSON; progress (jobs done, elapsed, time left) on stderr unless ``--quiet``.
+Errors name the flags.
 """
 
 from __future__ import annotations
 
 import json
 import os
+import time
 from pathlib import Path
 
 import click
@@ -38,6 +40,31 @@ def _in_flags(error: ValueError) -> ValueError:
     if any(text.startswith(f"{name}: ") for name in _FLAGS):
         return ValueError(f"--{text}")
     return error
+
+
+def _duration(seconds: float) -> str:
+    """``45s``, ``2m10s`` or ``1h05m``."""
+    s = int(round(seconds))
+    if s < 60:
+        return f"{s}s"
+    if s < 3600:
+        return f"{s // 60}m{s % 60:02d}s"
+    return f"{s // 3600}h{s % 3600 // 60:02d}m"
+
+
+class _Progress:
+    """Prints ``[evaluate] 7/15 jobs, 2m10s elapsed, ~2m40s left`` on stderr per
+    finished job; the time left assumes the remaining jobs take the mean so far."""
+
+    def __init__(self) -> None:
+        self.start = time.monotonic()
+
+    def __call__(self, done: int, total: int) -> None:
+        elapsed = time.monotonic() - self.start
+        left = "done" if done >= total else f"~{_duration(elapsed / done * (total - done))} left"
+        click.echo(
+            f"[evaluate] {done}/{total} jobs, {_duration(elapsed)} elapsed, {left}", err=True
+        )
 
 
 @click.command("evaluate")
@@ -75,6 +102,9 @@ def _in_flags(error: ValueError) -> ValueError:
 )
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
 @click.option(
+    "--quiet", is_flag=True, help="No progress lines on stderr (jobs done, elapsed, time left)."
+)
+@click.option(
     "--out",
     "out",
     default=None,
@@ -89,15 +119,23 @@ def evaluate_command(
     repeats: int,
     workers: int | None,
     as_json: bool,
+    quiet: bool,
     out: Path | None,
 ) -> None:
-    """Cross-validated F0.5, introspection and trajectory rates of the recognisers."""
+    """Cross-validated F0.5, ACR and MICAD, introspection (entropy histograms) and
+    trajectory rates of the recognisers."""
     if out is not None and out.is_dir():
         raise ValueError(f"{out}: --out must be a file path (e.g. evaluation.json)")
     workers = (os.cpu_count() or 1) if workers is None else workers
     try:
         result = run_evaluation(
-            demonstrations, model=model, folds=folds, seed=seed, workers=workers, repeats=repeats
+            demonstrations,
+            model=model,
+            folds=folds,
+            seed=seed,
+            workers=workers,
+            repeats=repeats,
+            progress=None if quiet else _Progress(),
         )
     except ValueError as error:
         raise _in_flags(error) from None

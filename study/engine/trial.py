@@ -27,6 +27,7 @@ from sim.world import World
 from study.data.recording import TrialRecorder
 from study.engine.clocks import DT, ExperimenterControl, FreeClock, WallClock
 from study.engine.events import EventSink, TrialWriter, jsonable
+from study.engine.recognition import RecognitionTally
 from study.participants.base import Participant
 from study.types import ParticipantInput, ScreenState, TickRecord, TrialInfo
 from tasks.geometry import footprint_clearance
@@ -186,6 +187,10 @@ class TrialLoop:
         self.status = "completed"
         self.reason = ""
         self.sink: EventSink | None = None
+        table = mode.label_tasks() if mode is not None else None
+        # what the mode's labels mean, to score its recognition (None: situations, unscored)
+        self.label_tasks = dict(table) if table is not None else None
+        self.tally = RecognitionTally(table) if table is not None else None
 
     # -------------------------------------------------------------- run
 
@@ -327,6 +332,8 @@ class TrialLoop:
             true_target=target,
         )
         self.writer.samples.append(record.row(self.trial_id))
+        if self.tally is not None:
+            self.tally.add(record.label, record.target, task, target)
         camera = None
         if self.camera_every and tick % self.camera_every == 0:
             participant = self.participant  # a screen's image, else rendered here
@@ -427,9 +434,10 @@ class TrialLoop:
             )
             if self.max_collisions is not None:
                 outcome["passed"] = bool(po.completed and po.collisions <= self.max_collisions)
-        table = self.mode.label_tasks() if self.mode is not None else None
-        if table is not None:  # what the mode's labels mean, for scoring its recognition
-            outcome["label_tasks"] = dict(table)
+        if self.label_tasks is not None:
+            outcome["label_tasks"] = self.label_tasks
+        if self.tally is not None and self.tally.counts:  # the driver said what they did
+            outcome["recognition"] = self.tally.summary()
         if self.secondary is not None:
             outcome["secondary"] = jsonable(summarise(self.sec_events))
         if status == "aborted":

@@ -10,6 +10,7 @@ import contextlib
 import multiprocessing
 import os
 import shutil
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -128,6 +129,7 @@ def run_evaluation(
     seed: int = 0,
     workers: int = 1,
     repeats: int = 1,
+    progress: Callable[[int, int], None] | None = None,
 ) -> dict[str, Any]:
     """Evaluate the model's recipe on the demonstrations in ``demonstrations``.
 
@@ -137,7 +139,9 @@ def run_evaluation(
     in that many ``spawn`` processes, one BLAS thread each (same result); with
     ``repeats`` > 1 the evaluation is repeated with seeds ``seed + 1``, ..., the result
     being the first seed's with their summary under ``"repeats"``
-    (:func:`autonomy.evaluation.summarise_repeats`).
+    (:func:`autonomy.evaluation.summarise_repeats`). ``progress(done, total)`` is called
+    as each job (fold or introspection pair) of each repeat finishes, counting over all
+    repeats (``total`` = repeats x jobs per evaluation).
 
     Raises
     ------
@@ -163,13 +167,13 @@ def run_evaluation(
         )
     demos = load_demonstrations(demonstrations)
     with contextlib.ExitStack() as stack:
-        map_fn = map
+        map_fn: Any = map
         if workers > 1:
             from study._blas import limit_blas_threads
 
             ctx = multiprocessing.get_context("spawn")
             pool = cf.ProcessPoolExecutor(workers, mp_context=ctx, initializer=limit_blas_threads)
-            map_fn = stack.enter_context(pool).map
+            map_fn = _as_completed_map(stack.enter_context(pool))
         results = [
             evaluate(
                 demos,
@@ -178,6 +182,7 @@ def run_evaluation(
                 model=str(model_path),
                 where=str(demonstrations),
                 map_fn=map_fn,
+                progress=None if progress is None else _across_repeats(progress, i, repeats),
             )
             for i in range(repeats)
         ]
@@ -185,6 +190,36 @@ def run_evaluation(
     if repeats > 1:
         result["repeats"] = summarise_repeats(results)
     return result
+
+
+def _as_completed_map(
+    pool: cf.Executor,
+) -> Callable[[Callable[[Any], Any], Iterable[Any]], Iterator[Any]]:
+    """A ``map`` over ``pool`` that yields the results as the jobs finish (not in
+    order), so progress is counted when a job ends; the jobs not yet started are
+    cancelled if one fails or the caller stops early."""
+
+    def map_fn(fn: Callable[[Any], Any], items: Iterable[Any]) -> Iterator[Any]:
+        futures = [pool.submit(fn, item) for item in items]
+        try:
+            for future in cf.as_completed(futures):
+                yield future.result()
+        finally:
+            for future in futures:
+                future.cancel()
+
+    return map_fn
+
+
+def _across_repeats(
+    progress: Callable[[int, int], None], repeat: int, repeats: int
+) -> Callable[[int, int], None]:
+    """``progress`` of one repeat's jobs, counted over all ``repeats``."""
+
+    def report(done: int, total: int) -> None:
+        progress(repeat * total + done, repeats * total)
+
+    return report
 
 
 def _with_model_recipe(

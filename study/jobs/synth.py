@@ -21,11 +21,12 @@ from pathlib import Path
 from typing import Any
 
 from sqlalchemy import select
-from sqlalchemy.engine import Engine
+from sqlalchemy.engine import Connection, Engine
 
 from study.data.merge import merge_participant, merged_codes, table_rows
 from study.data.storage import Base, open_database
 from study.engine.protocol import Protocol, load_protocol
+from study.engine.recognition import RecognitionTally
 from study.engine.session import derive_seed, run_session
 from study.participants.synthetic import Population, SyntheticParticipant
 
@@ -334,13 +335,15 @@ def _run_jobs(jobs: list[_Job], workers: int, finish: Callable[[_Done], None]) -
 
 
 def sanity_summary(db: str | Path, *, phase: str = "main") -> dict[str, dict[str, Any]]:
-    """Per mode over the ``phase`` trials: trials, completion rate, mean collisions and
-    score; for modes with task recognition, the share of ticks with a true task whose
-    recognised task (the label translated by the trial's stored ``label_tasks``: a motion
-    primitive's dominant task type) and target both match it
-    (``recognition_match``) and whose task alone matches (``task_match``).
+    """Per mode over the completed ``phase`` trials: trials, completion rate, mean
+    collisions and score; for modes with task recognition, the in-the-loop recognition
+    pooled over the trials' labelled ticks (ticks with a true task): ``labelled_ticks``,
+    the share whose recognised task and target both match (``recognition_match``), whose
+    task alone matches (``task_match``) and that recognised nothing (``null_rate``).
 
-    A summary for people (printed by ``asa pilot``), not a test.
+    The counts are those the trial outcome stores (``outcome["recognition"]``); a trial
+    stored without them is scored from its samples and its ``label_tasks``. A summary for
+    people (printed by ``asa pilot``), not a test.
     """
     engine = open_database(db, create=False)
     out: dict[str, dict[str, Any]] = {}
@@ -351,7 +354,6 @@ def sanity_summary(db: str | Path, *, phase: str = "main") -> dict[str, dict[str
             for t in trials:
                 if t["status"] == "completed":
                     by_mode.setdefault(t["mode"], []).append(t)
-            st = Base.metadata.tables["sample"]
             for mode, rows in sorted(by_mode.items()):
                 n = len(rows)
                 entry: dict[str, Any] = {
@@ -360,30 +362,36 @@ def sanity_summary(db: str | Path, *, phase: str = "main") -> dict[str, dict[str
                     "collisions_mean": sum(r["collisions"] or 0 for r in rows) / n,
                     "score_mean_s": sum(r["score"] or 0.0 for r in rows) / n,
                 }
-                ids = [r["id"] for r in rows]
-                q = select(st.c.label, st.c.target, st.c.true_task, st.c.true_target).where(
-                    st.c.trial_id.in_(ids), st.c.true_task != ""
-                )
-                labelled = conn.execute(q).all()
-                # what the labels mean, as the trial loop stored it (modes whose labels
-                # are situations, not task types, store nothing and are not scored)
-                tasks: dict[str, str] = {}
-                for r in rows:
-                    outcome = r["outcome"] if isinstance(r["outcome"], dict) else {}
-                    tasks.update(outcome.get("label_tasks") or {})
-                if tasks and labelled:
-                    both = task_only = 0
-                    for label, target, true_task, true_target in labelled:
-                        same = tasks.get(label) == true_task
-                        task_only += same
-                        both += same and target == true_target
-                    entry["task_match"] = task_only / len(labelled)
-                    entry["recognition_match"] = both / len(labelled)
-                    entry["labelled_ticks"] = len(labelled)
+                tally = _recognition(conn, rows)
+                if tally is not None:
+                    rec = tally.summary()
+                    entry["labelled_ticks"] = rec["labelled_ticks"]
+                    entry["task_match"] = rec["task_matches"] / rec["labelled_ticks"]
+                    entry["recognition_match"] = rec["task_target_matches"] / rec["labelled_ticks"]
+                    entry["null_rate"] = rec["null_ticks"] / rec["labelled_ticks"]
                 out[mode] = entry
     finally:
         engine.dispose()
     return out
+
+
+def _recognition(conn: Connection, rows: list[dict[str, Any]]) -> RecognitionTally | None:
+    """The recognition tally pooled over the trials ``rows``: each trial's stored counts,
+    or its samples scored with its ``label_tasks`` (modes whose labels are situations
+    store neither and are not scored); None without any labelled tick."""
+    st = Base.metadata.tables["sample"]
+    pooled = RecognitionTally({})
+    for r in rows:
+        outcome = r["outcome"] if isinstance(r["outcome"], dict) else {}
+        if isinstance(outcome.get("recognition"), dict):
+            pooled.merge(RecognitionTally.from_summary(outcome["recognition"]))
+        elif isinstance(outcome.get("label_tasks"), dict):
+            q = select(st.c.label, st.c.target, st.c.true_task, st.c.true_target).where(
+                st.c.trial_id == r["id"], st.c.true_task != ""
+            )
+            tally = RecognitionTally(outcome["label_tasks"])
+            pooled.merge(tally.add_rows(conn.execute(q)))
+    return pooled if sum(c[0] for c in pooled.counts.values()) else None
 
 
 def format_summary(summary: dict[str, dict[str, Any]]) -> list[str]:
@@ -397,7 +405,8 @@ def format_summary(summary: dict[str, dict[str, Any]]) -> list[str]:
         if "recognition_match" in e:
             line += (
                 f", recognition: task and target match {e['recognition_match']:.0%}, "
-                f"task matches {e['task_match']:.0%} of {e['labelled_ticks']} ticks"
+                f"task matches {e['task_match']:.0%}, nothing recognised "
+                f"{e['null_rate']:.1%} of {e['labelled_ticks']} labelled ticks"
             )
         lines.append(line)
     return lines

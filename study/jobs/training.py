@@ -6,7 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from autonomy.model import ContextualModel, save_model
-from autonomy.training import TrainSettings, train
+from autonomy.training import DemoCandidates, TrainSettings, train
 
 
 def train_model(
@@ -44,6 +44,12 @@ def train_model(
         task=demos.task,
         run=demos.run,
         source=Path(demonstrations).name,
+        candidates=DemoCandidates(
+            points=demos.cand_points,
+            offsets=demos.cand_offsets,
+            ids=demos.cand_ids,
+            target=demos.target,
+        ),
     )
     save_model(model, out)
     return model

@@ -237,11 +237,14 @@ class SyntheticParticipant(ParticipantBase):
         self._inspect_id = ""
         self._dock_id = ""
         name = info.scenario.inspection_object
+        dock = info.scenario.dock
+        docks = [c for c in comps if c.kind == "dock"]
         for c in comps:
             if c.kind == "object" and name and name in c.source:
                 self._inspect_id = c.id
-            if c.kind == "dock":
-                self._dock_id = c.id
+        if dock is not None and docks:  # the dock at pose B (a scene may have several)
+            b = np.array([dock.pose.x, dock.pose.y])
+            self._dock_id = min(docks, key=lambda c: float(np.hypot(*(c.centre - b)))).id
         self._expected_s = length / max(self.params.preferred_speed, 1e-3)
         if key not in self._nearby:
             self._nearby[key] = _nearby(comps)

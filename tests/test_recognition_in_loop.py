@@ -1,0 +1,118 @@
+"""In-the-loop recognition: the tally of recognised against true intention, the contextual
+task a primitive performs on a component, and the trial outcome that carries both."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from autonomy.task_types import KIND_TASK, MOTION_TASK, TASK_TYPES, contextual_task
+from study.engine.recognition import RecognitionTally
+from tasks.contextual import TARGET_KIND
+from tasks.contextual import TASK_TYPES as ALL_TASKS
+
+
+def test_every_named_task_targets_the_kind_that_names_it():
+    assert set(TASK_TYPES) <= set(ALL_TASKS)
+    for kind, task in KIND_TASK.items():
+        assert TARGET_KIND[task] == kind
+    for (kind, _motion), task in MOTION_TASK.items():
+        assert TARGET_KIND[task] == kind
+
+
+@pytest.mark.parametrize("motion", ["doorway_crossing", "object_inspection", "wall_following", ""])
+def test_the_component_kind_names_the_task_and_the_motion_splits_objects(motion):
+    assert contextual_task("gap", motion) == "gap_crossing"
+    assert contextual_task("dock", motion) == "robot_docking"
+    expected = "object_inspection" if motion == "object_inspection" else "object_bypass"
+    assert contextual_task("object", motion) == expected
+    assert contextual_task("unknown_kind", motion) == ""
+
+
+def _random_rows(rng: np.random.Generator, n: int) -> list[tuple[str, str, str, str]]:
+    tasks = ["a", "b", ""]
+    targets = ["x", "y"]
+    return [
+        (
+            str(rng.choice(["la", "lb", "", "other"])),
+            str(rng.choice(targets)),
+            str(rng.choice(tasks)),
+            str(rng.choice(targets)),
+        )
+        for _ in range(n)
+    ]
+
+
+def test_tally_counts_agree_with_a_direct_count(rng):
+    table = {"la": "a", "lb": "b"}
+    rows = _random_rows(rng, 400)
+    s = RecognitionTally(table).add_rows(rows).summary()
+    labelled = [r for r in rows if r[2]]
+    task = [table.get(r[0], "") == r[2] for r in labelled]
+    both = [t and r[1] == r[3] for t, r in zip(task, labelled, strict=True)]
+    null = [table.get(r[0], "") == "" for r in labelled]
+    assert s["labelled_ticks"] == len(labelled)
+    assert s["loop_task_match"] == round(sum(task) / len(labelled), 4)
+    assert s["loop_task_target_match"] == round(sum(both) / len(labelled), 4)
+    assert s["loop_null_rate"] == round(sum(null) / len(labelled), 4)
+    assert sum(c["labelled_ticks"] for c in s["per_task"].values()) == len(labelled)
+    assert s["loop_task_target_match"] <= s["loop_task_match"] <= 1 - s["loop_null_rate"]
+
+
+def test_tally_survives_its_summary_and_merges_additively(rng):
+    table = {"la": "a", "lb": "b"}
+    rows = _random_rows(rng, 300)
+    whole = RecognitionTally(table).add_rows(rows)
+    halves = RecognitionTally(table).add_rows(rows[:120])
+    halves.merge(
+        RecognitionTally.from_summary(RecognitionTally(table).add_rows(rows[120:]).summary())
+    )
+    assert halves.summary() == whole.summary()
+
+
+def test_an_empty_tally_has_no_shares():
+    s = RecognitionTally({"la": "a"}).add_rows([("la", "x", "", "")]).summary()
+    assert s["labelled_ticks"] == 0 and s["loop_task_match"] is None and s["per_task"] == {}
+
+
+def test_a_contextual_trial_with_a_synthetic_driver_stores_its_recognition(tmp_path, rng):
+    from study.engine.standalone import standalone_trial
+    from study.participants.synthetic import synthetic_participant
+
+    result, engine = standalone_trial(
+        tmp_path, synthetic_participant(rng), mode="contextual_task", timeout_s=25.0
+    )
+    engine.dispose()
+    rec = result.outcome["recognition"]
+    assert rec["labelled_ticks"] > 0
+    assert set(rec["per_task"]) <= set(ALL_TASKS)
+    assert 0.0 <= rec["loop_task_target_match"] <= rec["loop_task_match"] <= 1.0
+    assert set(result.outcome["label_tasks"]) <= set(ALL_TASKS)
+
+
+def test_a_manual_trial_scores_no_recognition(tmp_path, rng):
+    from study.engine.standalone import standalone_trial
+    from study.participants.synthetic import synthetic_participant
+
+    result, engine = standalone_trial(
+        tmp_path, synthetic_participant(rng), mode="reactive_bn", timeout_s=5.0
+    )
+    engine.dispose()
+    assert "recognition" not in result.outcome and "label_tasks" not in result.outcome
+
+
+def test_the_recognition_bench_pools_its_scenes_and_checks_the_aims():
+    from study.bench.budgets import check_budgets
+    from study.bench.recognition import drivable_scenes, run
+
+    assert {"cluttered_room", "demo_docking"} <= set(drivable_scenes())
+    figures = run(quick=True, scenes=["demo_docking"])
+    scene = figures["loop_per_scene"]["demo_docking"]
+    assert figures["labelled_ticks"] == scene["labelled_ticks"] > 0
+    assert (
+        sum(c["labelled_ticks"] for c in figures["loop_per_task"].values())
+        == scene["labelled_ticks"]
+    )
+    assert 0.0 <= figures["loop_task_target_match"] <= figures["loop_task_match"] <= 1.0
+    budgets = check_budgets(figures, ["recognition"])
+    assert {b["value"] for b in budgets.values()} >= {figures["loop_task_match"]}
