@@ -49,7 +49,7 @@ def _m_step(
 ) -> tuple[float, list[float], list[float], list[float]]:
     """M step of one component from its responsibility-weighted sums ``stats`` =
     (sum r x (5), sum r x^2 (5), sum r) over the features ``(x, x^2, 1)`` of the five
-    GMR columns (written out per column: this runs some 10^4 times a session).
+    GMR columns, written out column by column.
 
     Returns its log weight, mean (5,), variance (5,) (floored) and the coefficients
     (11,) of ``log pi + log N(x; mu, diag var)`` on the features (the next E step):
@@ -92,9 +92,10 @@ def _em(
     phi_t = phi.T
     previous = math.nan
     for it in range(1, max_iter + 1):
-        params = [_m_step(s, k, floor) for s in np.dot(resp, phi).tolist()]  # M step
-        theta = np.array(params[0][3] + params[1][3]).reshape(2, 11)
-        logp = np.dot(theta, phi_t)  # E step, (2, k): log pi_c N(x_i; mu_c, var_c)
+        s0, s1 = np.dot(resp, phi).tolist()  # M step
+        p0, p1 = _m_step(s0, k, floor), _m_step(s1, k, floor)
+        params = [p0, p1]
+        logp = np.dot((p0[3], p1[3]), phi_t)  # E step, (2, k): log pi_c N(x_i; mu_c, var_c)
         lse = np.logaddexp(logp[0], logp[1])  # (k,) log sum_c pi_c N(x_i; mu_c, var_c)
         current = math.fsum(lse.tolist()) / k  # mean log-likelihood
         if abs(current - previous) < tol * abs(current):
@@ -105,31 +106,36 @@ def _em(
     return params, max_iter, False
 
 
+def _features(x: np.ndarray) -> np.ndarray:
+    """The features (k, 11) = (x, x^2, 1) of points ``x`` (k, 5)."""
+    return np.concatenate((x, x * x, np.ones((len(x), 1))), axis=1)
+
+
 def _fit(
-    local: np.ndarray, floor: list[float], tol: float, max_iter: int, phi: np.ndarray
-) -> tuple[list[tuple], np.ndarray, int, bool]:
-    """:func:`local_gmm` on ``local`` (k, 5) with the variance floor (5,), using the work
-    array ``phi`` (k, 11) whose last column is 1. Returns the components
-    [(log w, mu, var, _)] with ``mu`` relative to the centre (5,), the centre,
-    iterations and convergence."""
-    k = local.shape[0]
-    centre = np.dot(np.full(k, 1.0 / k), local)
-    x = np.subtract(local, centre, out=phi[:, :5])  # centred: better conditioned sums
-    np.multiply(x, x, out=phi[:, 5:10])  # phi = (x, x^2, 1)
-    gram = np.dot(x, x.T).tolist()  # (k, k); |x_i|^2 is the squared distance to the mean
-    sq = [gram[i][i] for i in range(k)]
-    first = sq.index(min(sq))  # seed: the point nearest the mean
-    g = gram[first]
-    d0 = [a + sq[first] - 2.0 * b for a, b in zip(sq, g, strict=True)]
+    phi: np.ndarray, floor: list[float], tol: float, max_iter: int
+) -> tuple[list[tuple], int, bool]:
+    """:func:`local_gmm` on the features ``phi`` (k, 11) of points ``x`` relative to any
+    origin (:func:`_features`), with the variance floor (5,). Returns the components
+    [(log w, mu, var, _)] with ``mu`` relative to that origin, the iterations and
+    whether EM converged."""
+    k = phi.shape[0]
+    x = phi[:, :5]
+    gram = np.dot(x, x.T).tolist()  # (k, k)
+    # |x_i - m|^2 = |x_i|^2 - 2 x_i . m + |m|^2, m the mean: the last term is common
+    to_mean = [row[i] - 2.0 * sum(row) / k for i, row in enumerate(gram)]
+    first = to_mean.index(min(to_mean))  # seed: the point nearest the mean
+    g, gf = gram[first], gram[first][first]
+    d0 = [row[i] + gf - 2.0 * b for i, (row, b) in enumerate(zip(gram, g, strict=True))]
     second = d0.index(max(d0))  # seed: the point farthest from that one
     if not d0[second] > 0.0:  # all points coincide: one component
-        var = np.maximum(np.add.reduce(phi[:, 5:10], axis=0) / k, 0.0) + floor
-        return [(0.0, [0.0] * 5, var.tolist(), None)], centre, 0, True
-    g = gram[second]
-    near = [float(a + sq[second] - 2.0 * b < c) for a, b, c in zip(sq, g, d0, strict=True)]
-    resp = np.array([*[1.0 - n for n in near], *near]).reshape(2, k)  # the nearer seed
-    params, n_iter, converged = _em(phi, resp, floor, tol, max_iter)
-    return params, centre, n_iter, converged
+        return [(0.0, phi[0, :5].tolist(), floor, None)], 0, True
+    g, gs = gram[second], gram[second][second]
+    near = [
+        float(row[i] + gs - 2.0 * b < c)
+        for i, (row, b, c) in enumerate(zip(gram, g, d0, strict=True))
+    ]
+    resp = np.array((*[1.0 - n for n in near], *near)).reshape(2, k)  # the nearer seed
+    return _em(phi, resp, floor, tol, max_iter)
 
 
 def local_gmm(
@@ -139,6 +145,7 @@ def local_gmm(
     max_iter: int = EM_MAX_ITER,
     reg: float = 1e-3,
     scale: np.ndarray | None = None,
+    origin: np.ndarray | None = None,
 ) -> LocalMixture:
     """A 2-component diagonal GMM fitted by EM to a small local set (Alg. 2, "EM").
 
@@ -161,6 +168,9 @@ def local_gmm(
         Variance floor relative to ``scale``: ``reg * scale`` is added to every variance.
     scale : numpy.ndarray, optional
         (5,) per-column scale; default :func:`autonomy.gmr.data_scale` of ``local``.
+    origin : numpy.ndarray, optional
+        (5,) the origin of the sums EM accumulates (a point near the data keeps them well
+        conditioned); default the mean of ``local``. It changes the fit by rounding only.
 
     Returns
     -------
@@ -172,10 +182,10 @@ def local_gmm(
     if local.ndim != 2 or local.shape[1] != 5 or len(local) < 1:
         raise ValueError(f"local: must be a non-empty (k, 5) array, got {local.shape}")
     floor = reg * (data_scale(local) if scale is None else np.asarray(scale, dtype=float))
-    phi = np.ones((len(local), 11))
-    params, centre, n_iter, converged = _fit(local, floor.tolist(), tol, max_iter, phi)
+    origin = local.mean(axis=0) if origin is None else np.asarray(origin, dtype=float)
+    params, n_iter, converged = _fit(_features(local - origin), floor.tolist(), tol, max_iter)
     log_w, mu, var = (np.array(v, dtype=float) for v in list(zip(*params, strict=True))[:3])
-    return LocalMixture(np.exp(log_w), mu + centre, var, n_iter, converged)
+    return LocalMixture(np.exp(log_w), mu + origin, var, n_iter, converged)
 
 
 class LocalGMR:
@@ -215,16 +225,17 @@ class LocalGMR:
             raise ValueError(f"k: must be an integer >= 1, got {k!r}")
         self.scale_ = data_scale(self.points_)  # for the relative variance floor
         self.floor_ = (1e-3 * self.scale_).tolist()  # as local_gmm's default reg
-        self.tree_ = cKDTree(self.points_[:, list(GMR_INPUT)])
+        self.inputs_ = np.ascontiguousarray(self.points_[:, list(GMR_INPUT)])  # (N, 2) [m]
+        self.tree_ = cKDTree(self.inputs_)
         self.k = min(int(k), len(self.points_))
         self.tol = tol
         self.max_iter = max_iter
         self.cache_size = int(cache_size)
         self.cache_: dict[bytes, tuple[tuple[float, ...], ...]] = {}
         self.n_iter_counts_ = [0] * (max_iter + 1)
-        self.inputs_ = np.ascontiguousarray(self.points_[:, list(GMR_INPUT)])  # (N, 2) [m]
         self.pool_size = min(POOL_FACTOR * self.k, len(self.points_))
-        self._phi = np.ones((self.k, 11))  # work array of the fits: (x, x^2, 1)
+        self.origin_ = self.points_.mean(axis=0)  # (5,) origin of the local fits' sums
+        self.features_ = _features(self.points_ - self.origin_)  # (N, 11), see _fit
         self._query = np.ones(3)  # work arrays of the kNN search
         self._centre = np.empty(2)
         self._pools: list[tuple] = []  # (centre x, y [m], radius [m], indices, see _key)
@@ -247,11 +258,11 @@ class LocalGMR:
                 q = self._query  # |p - q|^2 = |p - c|^2 - 2 (p - c).(q - c) + |q - c|^2
                 q[0], q[1] = -2.0 * dx, -2.0 * dy
                 d2 = rel.dot(q)  # (P,), up to |q - c|^2
-                part = d2.argpartition(k - 1)
-                if d2.item(part.item(k - 1)) + (dx * dx + dy * dy) < margin * margin:
+                order = d2.argsort(kind="stable")
+                if d2.item(order.item(k - 1)) + (dx * dx + dy * dy) < margin * margin:
                     if n:
                         pools.insert(0, pools.pop(n))
-                    near = idx.take(part[:k])
+                    near = idx.take(order[:k])
                     near.sort()
                     return near.tobytes()
         c = self._centre
@@ -269,15 +280,14 @@ class LocalGMR:
 
     def _terms(self, key: bytes) -> tuple[tuple[float, ...], ...]:
         """The local fit of the neighbour set ``key`` as per-component constants of
-        Eqs. (4.6)-(4.8): (log w, mu_x, mu_y, var_x, var_y, log det, u* (3))."""
+        Eqs. (4.6)-(4.8): (log w, the input means (2) and variances (2) [m, m^2], the
+        log determinant of the input covariance, the output means ``u*`` (3))."""
         terms = self.cache_.get(key)
         if terms is None:
-            idx = np.frombuffer(key, dtype=np.intp)
-            params, centre, n_iter, _ = _fit(
-                self.points_.take(idx, axis=0), self.floor_, self.tol, self.max_iter, self._phi
-            )
+            phi = self.features_.take(np.frombuffer(key, dtype=np.intp), axis=0)
+            params, n_iter, _ = _fit(phi, self.floor_, self.tol, self.max_iter)
             self.n_iter_counts_[n_iter] += 1
-            cx, cy, c0, c1, c2 = centre.tolist()
+            cx, cy, c0, c1, c2 = self.origin_.tolist()
             terms = tuple(
                 (
                     lw,
@@ -314,17 +324,19 @@ class LocalGMR:
     def predict_xy(self, sx: float, sy: float) -> tuple[float, float, float]:
         """:meth:`predict` for the input ``(sx, sy)`` [m] in scalar arithmetic (the
         rollout's inner loop): the same Eqs. (4.5)-(4.8)."""
-        terms = self._terms(self._key(sx, sy))
-        logps = []
-        for lw, mx, my, vx, vy, ld, *_ in terms:
-            dx, dy = sx - mx, sy - my
-            logps.append(lw - 0.5 * ((dx * dx / vx + dy * dy / vy) + ld))
-        top = max(logps)
-        h_sum = o0 = o1 = o2 = 0.0
-        for lp, term in zip(logps, terms, strict=True):
-            h = math.exp(lp - top)  # Eqs. (4.6), (4.7)
-            h_sum += h
-            o0 += h * term[6]
-            o1 += h * term[7]
-            o2 += h * term[8]
-        return o0 / h_sum, o1 / h_sum, o2 / h_sum  # Eq. (4.8)
+        key = self._key(sx, sy)
+        terms = self.cache_.get(key) or self._terms(key)
+        if len(terms) == 1:
+            return terms[0][6:]
+        (lw0, mx0, my0, vx0, vy0, ld0, a0, b0, c0), (lw1, mx1, my1, vx1, vy1, ld1, a1, b1, c1) = (
+            terms
+        )
+        dx0, dy0, dx1, dy1 = sx - mx0, sy - my0, sx - mx1, sy - my1
+        l0 = lw0 - 0.5 * ((dx0 * dx0 / vx0 + dy0 * dy0 / vy0) + ld0)  # Eqs. (4.6), (4.7)
+        l1 = lw1 - 0.5 * ((dx1 * dx1 / vx1 + dy1 * dy1 / vy1) + ld1)
+        if l0 >= l1:
+            h0, h1 = 1.0, math.exp(l1 - l0)
+        else:
+            h0, h1 = math.exp(l0 - l1), 1.0
+        h = h0 + h1
+        return (h0 * a0 + h1 * a1) / h, (h0 * b0 + h1 * b1) / h, (h0 * c0 + h1 * c1) / h

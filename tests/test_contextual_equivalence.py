@@ -98,7 +98,11 @@ class _RefLocalGMR:
         fit = self.cache_.get(key)
         if fit is None:
             w, mu, var, *_ = local_gmm(
-                self.points_[idx], tol=self.tol, max_iter=self.max_iter, scale=self.scale_
+                self.points_[idx],
+                tol=self.tol,
+                max_iter=self.max_iter,
+                scale=self.scale_,
+                origin=self.points_.mean(axis=0),  # the sums' origin LocalGMR uses
             )
             fit = self.cache_[key] = (np.log(w), mu[:, :2], var[:, :2], mu[:, 2:])
         log_w, mu_x, var_x, mu_y = fit
