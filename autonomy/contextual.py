@@ -175,7 +175,6 @@ class Runtime:
     gmrs: tuple[LocalGMR, ...]
     whiten: np.ndarray  # (c, 7, 7) L^-1 with L L^T the primitive's covariance
     row: dict[int, int]  # cluster id -> row of the per-cluster arrays
-    names: tuple[str, ...]
     # the Mahalanobis map of raw encoded features: e = whiten_scaled[j] @ z - whiten_offset[j]
     whiten_scaled: np.ndarray  # (c, 7, 7) whiten / the scaler's scale_
     whiten_offset: np.ndarray  # (c, 7) whiten @ (mean_ / scale_ + cluster mean)
@@ -208,7 +207,6 @@ def build_runtime(model: ContextualModel, settings: ContextualSettings) -> Runti
         gmrs=gmrs,
         whiten=whiten,
         row={int(c): j for j, c in enumerate(model.cluster_ids)},
-        names=model.cluster_names(),
         whiten_scaled=whiten_scaled,
         whiten_offset=whiten_offset,
         mahalanobis=np.concatenate((whiten_scaled, -whiten_offset[:, :, None]), axis=2),

@@ -141,7 +141,6 @@ class _Reference:
         L = np.linalg.cholesky(model.cluster_covariances)
         self.whiten = np.linalg.solve(L, np.broadcast_to(np.eye(L.shape[1]), L.shape))
         self.row = {int(c): j for j, c in enumerate(model.cluster_ids)}
-        self.names = model.cluster_names()
 
     def rollout(self, cluster, component):
         j, s, robot = self.row[int(cluster)], self.s, self.robot

@@ -87,11 +87,7 @@ def evaluate(
     seeds = root.spawn(settings.folds + len(pairs))
     jobs = [("fold", data, k, seeds[k]) for k in range(settings.folds)]
     jobs += [("pair", data, p, seeds[settings.folds + i]) for i, p in enumerate(pairs)]
-    results: list[Any] = [None] * len(jobs)
-    for done, (i, result) in enumerate(map_fn(run_numbered_job, enumerate(jobs)), start=1):
-        results[i] = result
-        if progress is not None:
-            progress(done, len(jobs))
+    results = _run_jobs(jobs, map_fn, progress)
     return pool_results(
         results[: settings.folds],
         results[settings.folds :],
@@ -101,3 +97,18 @@ def evaluate(
         model=model,
         total_s=time.perf_counter() - t_start,
     )
+
+
+def _run_jobs(
+    jobs: list[Any],
+    map_fn: Callable[[Callable[[Any], Any], Iterable[Any]], Iterable[Any]],
+    progress: Callable[[int, int], None] | None,
+) -> list[Any]:
+    """Every job's result in job order, whatever order ``map_fn`` hands them back in;
+    ``progress(done, total)`` after each."""
+    results: list[Any] = [None] * len(jobs)
+    for done, (i, result) in enumerate(map_fn(run_numbered_job, enumerate(jobs)), start=1):
+        results[i] = result
+        if progress is not None:
+            progress(done, len(jobs))
+    return results
