@@ -511,6 +511,8 @@ def _render_html(
         aborted=frames.aborted.to_dict("records"),
         incomplete=incomplete.to_dict("records"),
         timeouts=timeouts[["participant", "mode", "position"]].to_dict("records"),
+        timeout_policy=data.config.timeouts,
+        timeout_counts=timeouts["mode"].value_counts(sort=False).to_dict(),
         n_trials=len(frames.trials),
         generated=time.strftime("%Y-%m-%d %H:%M:%S %Z"),
     )

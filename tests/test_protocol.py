@@ -24,6 +24,7 @@ from study.engine.protocol import (
     GATES,
     PHASE_KINDS,
     POSTHOC,
+    TIMEOUTS,
     Baseline,
     Practice,
     Training,
@@ -197,6 +198,7 @@ BAD = [
     ("alpha = 0.05", "alpha = 1.5", "analysis.alpha"),
     ('gate = "auto"', 'gate = "bonferroni"', "analysis.gate"),
     ('posthoc = "lsd_paired"', 'posthoc = "tukey"', "analysis.posthoc"),
+    ('timeouts = "exclude"', 'timeouts = "drop"', "analysis.timeouts"),
     ('"completion_time_s",', '"speed",', "analysis.metrics[0]"),
     ("window = [1280, 720]", "window = [1280]", "ui.window"),
     ("show_map = true", "show_map = true\n[ui.instructions]\nmian = 'x'", "ui.instructions.mian"),
@@ -224,8 +226,10 @@ def test_malformed_protocol_names_file_and_field(old, new, field):
 
 def test_analysis_choices_match_the_analysis_package():
     from analysis import stats
+    from analysis.data import load as analysis_data
 
     assert GATES == stats.GATES
+    assert TIMEOUTS == analysis_data.TIMEOUTS
     assert all(callable(getattr(stats, name)) for name in POSTHOC)
 
 

@@ -186,7 +186,9 @@ def tidy(data: StudyData) -> Frames:
     aborted = _aborted(main, counted)
     modes = _mode_levels(data.config, list(dict.fromkeys(counted["mode"])))
     frame = _trial_frame(counted, data.config.collision_penalty_s)
+    frame, timeout_notes = _with_timeouts(frame, data.config.timeouts)
     frame, recognition, warnings = _with_sample_metrics(frame, counted, t["sample"], data.source)
+    warnings = timeout_notes + warnings
     level_of = _levels_of_trials(trials, frame)
     questions = _questions(trials, t["question"], level_of)
     frame = _with_secondary(frame, questions)
@@ -273,6 +275,32 @@ def _trial_frame(counted: pd.DataFrame, collision_penalty_s: float) -> pd.DataFr
     recomputed = frame["completion_time_s"] + collision_penalty_s * frame["collisions"]
     frame["score_s"] = frame["score_s"].fillna(recomputed)
     return frame
+
+
+TIMED_METRICS: tuple[str, ...] = ("completion_time_s", "score_s")
+
+
+def _with_timeouts(frame: pd.DataFrame, policy: str) -> tuple[pd.DataFrame, list[str]]:
+    """Mark the trials that timed out (``timed_out``) and treat their completion time and
+    score as ``policy`` says ([analysis] timeouts): missing (``"exclude"``; the
+    repeated-measures tests then drop the participant listwise) or the time limit kept as
+    a right-censored value (``"censor"``, ``censored`` True); the note for the report."""
+    timed_out = frame["completed_task"].eq(False)
+    frame = frame.assign(timed_out=timed_out, censored=timed_out & (policy == "censor"))
+    if not timed_out.any():
+        return frame, []
+    per_mode = frame.loc[timed_out, "mode"].value_counts(sort=False)
+    counts = ", ".join(f"{mode} {n}" for mode, n in per_mode.items())
+    if policy == "exclude":
+        frame.loc[timed_out, list(TIMED_METRICS)] = np.nan
+        what = "their completion time and score are excluded as missing"
+    else:
+        what = "their completion time and score are the time limit, a censored lower bound"
+    note = (
+        f"{int(timed_out.sum())} main trial(s) timed out without finishing the route "
+        f'({counts}): {what} ([analysis] timeouts = "{policy}")'
+    )
+    return frame, [note]
 
 
 def _with_sample_metrics(

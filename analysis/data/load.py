@@ -26,6 +26,10 @@ TABLES: tuple[str, ...] = (
     "response",
 )
 
+# [analysis] timeouts: a timed-out main trial's completion time and score are missing
+# ("exclude") or the time limit, a right-censored value ("censor"); docs/decisions.md
+TIMEOUTS: tuple[str, ...] = ("exclude", "censor")
+
 _JSON = {"participant": ("parameters", "mode_order"), "trial": ("outcome",), "event": ("detail",)}
 
 _BOOL = {
@@ -58,6 +62,8 @@ class AnalysisConfig:
     secondary_baseline_level : the baseline as a level of secondary metrics.
     collision_penalty_s : [s] per collision in the score ([scoring], 60).
     modes : the protocol's mode names in its order ([modes] names).
+    timeouts : what a timed-out main trial's completion time and score are
+        ([analysis] timeouts): "exclude" (missing) or "censor" (the time limit).
     """
 
     alpha: float = 0.05
@@ -67,6 +73,7 @@ class AnalysisConfig:
     secondary_baseline_level: bool = True
     collision_penalty_s: float = 60.0
     modes: tuple[str, ...] = ()
+    timeouts: str = "exclude"
 
 
 @dataclass(frozen=True, slots=True)
@@ -99,6 +106,12 @@ def read_config(protocol_text: str, *, source: str = "protocol") -> AnalysisConf
     analysis = doc.get("analysis", {}) or {}
     scoring = doc.get("scoring", {}) or {}
     modes = (doc.get("modes", {}) or {}).get("names", []) or []
+    timeouts = str(analysis.get("timeouts", "exclude"))
+    if timeouts not in TIMEOUTS:
+        raise ValueError(
+            f"{source}: field 'analysis.timeouts' must be one of {', '.join(TIMEOUTS)}, got "
+            f"{timeouts!r}"
+        )
     return AnalysisConfig(
         alpha=float(analysis.get("alpha", 0.05)),
         gate=str(analysis.get("gate", "auto")),
@@ -107,6 +120,7 @@ def read_config(protocol_text: str, *, source: str = "protocol") -> AnalysisConf
         secondary_baseline_level=bool(analysis.get("secondary_baseline_level", True)),
         collision_penalty_s=float(scoring.get("collision_penalty_s", 60.0)),
         modes=tuple(str(m) for m in modes),
+        timeouts=timeouts,
     )
 
 

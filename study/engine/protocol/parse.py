@@ -42,6 +42,7 @@ from study.engine.protocol.types import (
     POSTHOC,
     PRACTICE_ORDERS,
     ROUTE_POINTS,
+    TIMEOUTS,
     TLX_WEIGHTS,
     AfterTrial,
     AnalysisSettings,
@@ -301,6 +302,7 @@ def _analysis(r: FieldReader) -> AnalysisSettings:
             allowed=METRICS,
         ),
         secondary_baseline_level=_boolean(r, "secondary_baseline_level", True),
+        timeouts=r.string("timeouts", "exclude", allowed=TIMEOUTS),
     )
     if not a.metrics:
         raise r.fail("metrics", f"must name at least one of {', '.join(METRICS)}")

@@ -31,6 +31,9 @@ AFTER_TRIAL_INSTRUMENTS: tuple[str, ...] = (nasa_tlx.INSTRUMENT_ID,)
 EXPERIENCE_INSTRUMENTS: tuple[str, ...] = (experience_q.INSTRUMENT_ID,)
 PRACTICE_ORDERS: tuple[str, ...] = ("assigned", "protocol")
 ON_FAIL: tuple[str, ...] = ("exclude", "continue")
+# How the analysis treats the completion time and score of a main trial that timed out
+# (docs/decisions.md): missing ("exclude") or the time limit as a censored value ("censor").
+TIMEOUTS: tuple[str, ...] = ("exclude", "censor")
 # Per-trial metrics the analysis can compute from a study database (thesis 7.5, 7.6.1.3).
 METRICS: tuple[str, ...] = (
     "completion_time_s",
@@ -171,6 +174,7 @@ class AnalysisSettings:
     posthoc: str  # POSTHOC
     metrics: tuple[str, ...]  # of METRICS
     secondary_baseline_level: bool  # the baseline as a further level for secondary metrics
+    timeouts: str  # TIMEOUTS: timed-out trials' completion time and score
 
 
 @dataclass(frozen=True, slots=True)
