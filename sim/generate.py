@@ -21,6 +21,7 @@ used. Every scene passes :func:`sim.check.check_scene`.
 from __future__ import annotations
 
 import itertools
+import numbers
 from dataclasses import dataclass
 
 import numpy as np
@@ -416,7 +417,7 @@ def _inspection(
         r = rooms[k].rect.grown(-(_HALF + INSPECTION_CLEAR_M + 0.05))
         if r.x1 - r.x0 < 2 * half[0] or r.y1 - r.y0 < 2 * half[1]:
             continue
-        for _ in range(60):
+        for _ in range(200):
             cx = _cm(rng.uniform(r.x0 + half[0], r.x1 - half[0]))
             cy = _cm(rng.uniform(r.y0 + half[1], r.y1 - half[1]))
             rect = _Rect(cx - half[0], cy - half[1], cx + half[0], cy + half[1])
@@ -563,7 +564,9 @@ def generate_scene(rng: np.random.Generator, *, rooms: int | None = None) -> dic
         lengths [m], angles [deg]. :func:`sim.scenario.parse_scenario` accepts it and
         :func:`sim.check.check_scene` finds no problem.
     """
-    if rooms is not None and (isinstance(rooms, bool) or rooms not in range(3, 7)):
+    if rooms is not None and (
+        isinstance(rooms, bool) or not isinstance(rooms, numbers.Integral) or not 3 <= rooms <= 6
+    ):
         raise ValueError(f"rooms: must be an integer from 3 to 6, got {rooms!r}")
     n = int(rng.integers(3, 7)) if rooms is None else int(rooms)
     plan = _plan(rng, n)
