@@ -1,4 +1,5 @@
-"""``asa scenario``: list the shipped scenes, show one scene's components, write its map.
+"""``asa scenario``: list the shipped scenes, show one scene's components, write its map,
+check that the robot can drive a scene, generate a random one.
 
 Thin click commands over :mod:`study.jobs.scenes`; bad input is a ``ValueError`` naming
 the file (and the field), which the ``asa`` shell prints as one line with exit status 2.
@@ -8,14 +9,17 @@ from __future__ import annotations
 
 import json
 import math
+import sys
 from pathlib import Path
 
 import click
 
 from sim.semantics import derive_components
 from study.jobs.scenes import (
+    check,
     describe,
     format_description,
+    generate,
     has_display,
     list_scenarios,
     load,
@@ -26,7 +30,8 @@ from study.jobs.scenes import (
 
 @click.group()
 def scenario() -> None:
-    """Inspect scenarios: the shipped list, one scene's semantic components, its map.
+    """Inspect, check and generate scenarios: the shipped list, one scene's semantic
+    components, its map, whether the robot can drive it, random floor plans.
 
     NAME|FILE is a shipped scenario's name (see `asa scenario list`) or the path
     of any scenario TOML file (format: sim/scenario.py).
@@ -117,3 +122,54 @@ def map_command(name_or_file: str, out: Path, resolution: float) -> None:
     paths = write_map(s, out, resolution=resolution)
     for kind in ("pgm", "yaml", "png"):
         click.echo(f"{kind:<4}  {paths[kind]}")
+
+
+@scenario.command("check")
+@click.argument("name_or_file", metavar="NAME|FILE")
+def check_command(name_or_file: str) -> None:
+    """Check that the robot can drive a scenario before anyone does.
+
+    The footprint at A is free; a path leads from A to B and back; the robot fits
+    under the dock's table and drives straight in from its open side; the
+    inspection object has a free arc to sweep; every doorway and gap can be entered.
+    Checks needing a dock, table or inspection object are skipped without one.
+    Prints "ok" (exit 0), or one line per problem on stderr (exit status 2).
+    """
+    s, problems = check(name_or_file)
+    if problems:
+        for line in problems:
+            click.echo(f"asa: {line}", err=True)
+        sys.exit(2)
+    what = [
+        "start",
+        *(["route A-B-A", "dock" if s.dock.table else "goal pose"] if s.dock else []),
+        *(["inspection arc"] if s.inspection_object else []),
+        "passages",
+    ]
+    click.echo(f"ok  {s.source}: {', '.join(what)}")
+
+
+@scenario.command("generate")
+@click.option("--seed", type=click.IntRange(min=0), required=True, help="Random seed (>= 0).")
+@click.option(
+    "--rooms", type=click.IntRange(3, 6), default=None, help="Rooms in the chain (3-6; drawn)."
+)
+@click.option(
+    "--out",
+    "out",
+    required=True,
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="The scenario TOML file to write.",
+)
+@click.option("--force", is_flag=True, help="Overwrite --out if it exists.")
+def generate_command(seed: int, rooms: int | None, out: Path, force: bool) -> None:
+    """Write a random study scene: rooms in a chain, doorways, a row with a gap, maybe
+    a corridor, clutter, a table to dock under, an inspection object, a question region.
+
+    The same seed gives the same file, byte for byte; every scene passes
+    `asa scenario check`.
+    """
+    if out.exists() and not force:
+        raise ValueError(f"--out {out}: exists already; pass --force to overwrite it")
+    path = generate(out, seed=seed, rooms=rooms, force=force)
+    click.echo(f"wrote {path}")

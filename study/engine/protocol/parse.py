@@ -24,6 +24,7 @@ from typing import Any
 from autonomy.modes import available_modes, make_mode
 from protocols import PROTOCOL_DIR, available
 from questionnaires import nasa_tlx
+from sim.check import check_scene
 from sim.fields import FieldReader
 from sim.scenario import Scenario, load_scenario
 from study.engine.counterbalance import SCHEMES
@@ -125,10 +126,34 @@ class _Scenarios:
             name = str(self.base / name)
         if name not in self.cache:
             try:
-                self.cache[name] = load_scenario(name)
+                scenario = load_scenario(name)
+                problem = _first_problem(scenario)
             except (ValueError, FileNotFoundError, OSError) as error:
                 raise r.fail(key, f"cannot load scenario {name!r}: {error}") from None
+            if problem is not None:
+                raise r.fail(key, f"scenario {name!r} fails the scene check: {problem}")
+            self.cache[name] = scenario
         return name, self.cache[name]
+
+
+_CHECKED: dict[tuple[str, str], str | None] = {}  # (file, SHA-256 of its bytes) -> problem
+
+
+def _first_problem(scenario: Scenario) -> str | None:
+    """The first problem :func:`sim.check.check_scene` finds, as one line, or ``None``.
+
+    Remembered per file content for the process, since protocols are parsed often
+    and a scene's check takes a few tenths of a second.
+    """
+    try:
+        digest = hashlib.sha256(Path(scenario.source).read_bytes()).hexdigest()
+    except OSError:
+        digest = ""
+    key = (scenario.source, digest)
+    if not digest or key not in _CHECKED:
+        problems = check_scene(scenario)
+        _CHECKED[key] = problems[0].line(scenario.source) if problems else None
+    return _CHECKED[key]
 
 
 def _training(r: FieldReader, modes: tuple[str, ...], scenarios: _Scenarios) -> Training:
