@@ -106,13 +106,15 @@ def test_the_recognition_bench_pools_its_scenes_and_checks_the_aims():
     from study.bench.recognition import drivable_scenes, run
 
     assert {"cluttered_room", "demo_docking"} <= set(drivable_scenes())
-    figures = run(quick=True, scenes=["demo_docking"])
-    scene = figures["loop_per_scene"]["demo_docking"]
-    assert figures["labelled_ticks"] == scene["labelled_ticks"] > 0
-    assert (
-        sum(c["labelled_ticks"] for c in figures["loop_per_task"].values())
-        == scene["labelled_ticks"]
-    )
+    figures = run(quick=True, scenes=["demo_docking"], generated=(0,))
+    assert figures["recognition_scenes"] == ["demo_docking", "generated_0"]
+    scenes = figures["loop_per_scene"]
+    assert all(s["labelled_ticks"] > 0 for s in scenes.values())
+    assert figures["loop_shipped"]["labelled_ticks"] == scenes["demo_docking"]["labelled_ticks"]
+    assert figures["loop_generated"]["labelled_ticks"] == scenes["generated_0"]["labelled_ticks"]
+    total = sum(s["labelled_ticks"] for s in scenes.values())
+    assert figures["labelled_ticks"] == total
+    assert sum(c["labelled_ticks"] for c in figures["loop_per_task"].values()) == total
     assert 0.0 <= figures["loop_task_target_match"] <= figures["loop_task_match"] <= 1.0
     budgets = check_budgets(figures, ["recognition"])
     assert {b["value"] for b in budgets.values()} >= {figures["loop_task_match"]}
