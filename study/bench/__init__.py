@@ -26,6 +26,7 @@ GROUPS: dict[str, str] = {
     "trial": "study.bench.trial",
     "synth": "study.bench.synth",
     "recognition": "study.bench.recognition",
+    "scenes": "study.bench.scenes",
 }
 
 

@@ -44,6 +44,13 @@ BUDGETS: tuple[Budget, ...] = (
     # issue 16; quality, not speed: DESIGN.md lists no such budget)
     Budget("recognition", "loop_task_match", ">=", 0.75),
     Budget("recognition", "loop_task_target_match", ">=", 0.60),
+    # generated scenes (the aims of issue 17): every generated scene passes the checker,
+    # every mode completes its trials, assistance halves manual's collisions, the
+    # contextual mode recognises the driver's task
+    Budget("scenes", "scene_checker_rejects", "<=", 0),
+    Budget("scenes", "scene_completion_min", ">=", 0.95),
+    Budget("scenes", "scene_collisions_ratio", "<=", 0.5),
+    Budget("scenes", "scene_task_match", ">=", 0.70),
 )
 
 
