@@ -32,6 +32,10 @@ class ScriptedSettings:
     yaw_gain: float = 2.5  # [1/s] heading P gain
     stop_tolerance_m: float = 0.05  # [m] a goal pose is reached this close
     align_distance_m: float = 1.2  # [m] turn to B's heading over this last stretch
+    # [m] turn to face the inspection object only this close to the orbit's entry: facing
+    # it earlier, the approach's sideways drift inside the band would sweep an arc that
+    # the orbit must then undo (the task counts the net arc of a visit)
+    face_distance_m: float = 0.3
     clearances_m: tuple[float, ...] = (0.44, 0.38, 0.33, 0.29)  # tried in order for A*
     centre_clearance_m: float = 0.6  # [m] path points nearer obstacles are pushed away
     orbit_distance_m: float = 0.8  # [m] from the inspection object's surface
@@ -412,7 +416,8 @@ class ScriptedParticipant(ParticipantBase):
             vel = direction / dist * min(speed, dist / 0.05)
         else:
             vel = np.zeros(2)
-        if yaw_goal is not None and to_end <= s.align_distance_m:
+        align = s.align_distance_m if leg.face is None else s.face_distance_m
+        if yaw_goal is not None and to_end <= align:
             want = yaw_goal
         elif dist > 0.05:
             want = math.atan2(direction[1], direction[0])
