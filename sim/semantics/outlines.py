@@ -153,3 +153,20 @@ def _any_hit(
         and _segment_hits(s, p, q, margin)
         for s in shapes
     )
+
+
+def _clearance(point: np.ndarray, shapes: Sequence[_Shape]) -> float:
+    """Distance [m] from ``point`` (2,) to the nearest outline of ``shapes`` (0 inside)."""
+    best = np.inf
+    for shape in shapes:
+        gap = float(np.hypot(*(point - shape.centre)))
+        if gap - shape.radius >= best:
+            continue
+        if shape.polygon is None:
+            best = min(best, max(gap - shape.radius, 0.0))
+        elif _inside_polygon(point, shape.polygon):
+            return 0.0
+        else:
+            near = _closest_on_edges(point[None], shape.polygon)[0]
+            best = min(best, float(np.min(np.hypot(*(near - point).T))))
+    return best

@@ -5,7 +5,9 @@ of closest points, so a doorway between collinear walls is centred). The pair is
 passage when its clear width lies in ``scenario.semantics.passage_width`` (line 16),
 the segment between the closest points crosses no other obstacle (the exact
 counterpart of the 95 % free-cells test, lines 21-29), it is an opening rather than
-the side of a corridor (:func:`_passage_depth`), its centre lies within the bounds,
+the side of a corridor (:func:`_passage_depth`), for a gap the robot fits on both sides
+of it (:func:`_traversable`: a dead-end pocket beside furniture is no passage; a doorway
+in a wall stays one even when something blocks it), its centre lies within the bounds,
 and the two outlines are not two legs of one table (that opening is the dock).
 Between two walls it is a doorway; with a free-standing obstacle on a side, a gap.
 Passages closer than ``MERGE_DISTANCE_M`` are merged, keeping the narrowest.
@@ -19,12 +21,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from sim.scenario import Scenario
-from sim.semantics.outlines import _EPS_M, _any_hit, _closest_points, _Shape
+from sim.semantics.outlines import _EPS_M, _any_hit, _clearance, _closest_points, _Shape
 
 MERGE_DISTANCE_M = 0.75  # Alg. 5: passages with closer centres are one passage
 MAX_PASSAGE_DEPTH_M = 0.7  # a constriction deeper than this is a corridor [m]
 DEPTH_STEP_M = 0.05  # resolution of the depth probe [m]
 CORRIDOR_PROBE_SLACK_M = 0.2  # probe reach beyond the passage's half width [m]
+SIDE_PROBE_SLACK_M = 0.1  # the side probes lie this far beyond half the robot's length [m]
 _WIDTH_TOL_M = 1e-9
 
 
@@ -75,6 +78,20 @@ def _passage_depth(shapes: Sequence[_Shape], centre: np.ndarray, ends: np.ndarra
     return steps * DEPTH_STEP_M
 
 
+def _traversable(
+    scenario: Scenario, shapes: Sequence[_Shape], centre: np.ndarray, ends: np.ndarray
+) -> bool:
+    """Whether the robot fits on both sides of the opening: a disc of half its width is
+    free at half its length plus ``SIDE_PROBE_SLACK_M`` from ``centre`` along the crossing
+    normal, each way (not in Alg. 5; docs/decisions.md)."""
+    reach = scenario.robot.length / 2 + SIDE_PROBE_SLACK_M
+    half_width = scenario.robot.width / 2
+    normal = _crossing_normal(ends)
+    return all(
+        _clearance(centre + side * reach * normal, shapes) >= half_width for side in (1.0, -1.0)
+    )
+
+
 def _passages(scenario: Scenario, shapes: list[_Shape]) -> list[_Passage]:
     lo, hi = scenario.semantics.passage_width
     (x_min, y_min), (x_max, y_max) = scenario.bounds
@@ -102,6 +119,8 @@ def _passages(scenario: Scenario, shapes: list[_Shape]) -> list[_Passage]:
             if _passage_depth(shapes, centre, ends) > MAX_PASSAGE_DEPTH_M + 1e-9:
                 continue  # the side of a corridor, not an opening
             kind = "doorway" if a.is_wall and b.is_wall else "gap"
+            if kind == "gap" and not _traversable(scenario, shapes, centre, ends):
+                continue  # a pocket beside furniture the robot can enter at most
             found.append(_Passage(kind, centre, ends, width, (a.name, b.name)))
     return _merge(found)
 
