@@ -13,9 +13,10 @@ Reproduces the figures of docs/results.md, "Issue 16: what the task feature can 
    optimistic bound), on the thesis feature alone, with a point-vs-surface target bit,
    and with the component kind one-hot.
 
-Run from the repository root (about 6 minutes on 2 cores):
+Run from the repository root (about 6 minutes on 2 cores; ``--generated 10 --drivers
+2``: the generated floor plans of seeds 0-9 instead, 2 drivers each, about 15 minutes):
 
-    python docs/experiments/recognition_bound.py [--out DIR]
+    python docs/experiments/recognition_bound.py [--out DIR] [--generated N] [--drivers D]
 """
 
 from __future__ import annotations
@@ -33,13 +34,14 @@ import autonomy.contextual as ctx
 from autonomy.features import encode
 from autonomy.model import load_model
 from autonomy.task_types import contextual_task, primitive_motions
-from study.bench.recognition import _SEED, drivable_scenes, scene_recognition
+from sim.scenario import load_scenario
+from study.bench.recognition import _SEED, drivable_scenes, scene_recognition, write_generated
 from study.data.storage import open_database
 
 KINDS = ("doorway", "gap", "dock", "object", "wall")
 
 
-def record(folder: Path, drivers: int) -> list[dict]:
+def record(folder: Path, drivers: int, scenes: list[str]) -> list[dict]:
     """Every tick of the bench's trials: candidate ids, kinds, features, true labels."""
     log: list[tuple] = []
     seen: dict = {}
@@ -63,10 +65,10 @@ def record(folder: Path, drivers: int) -> list[dict]:
     ctx._nearest_candidates, ctx.ContextualTaskMode.step = nearest, stepping
     rows: list[dict] = []
     try:
-        for scene in drivable_scenes():
+        for scene in scenes:
             log.clear()
             scene_recognition(folder, scene, drivers, _SEED)
-            truth = _truth(folder, scene, drivers)
+            truth = _truth(folder, load_scenario(scene).name, drivers)
             if len(truth) != len(log):
                 raise RuntimeError(f"{scene}: {len(truth)} samples but {len(log)} mode steps")
             for (ids, kinds, q, label, target), t in zip(log, truth, strict=True):
@@ -189,11 +191,17 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=None, help="keep the trial databases here")
     parser.add_argument("--drivers", type=int, default=3)
+    parser.add_argument(
+        "--generated", type=int, default=0, help="the generated floor plans 0..N-1 instead"
+    )
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         folder = args.out or Path(tmp)
         folder.mkdir(parents=True, exist_ok=True)
-        rows = record(folder, args.drivers)
+        scenes = drivable_scenes()
+        if args.generated:
+            scenes = write_generated(folder, tuple(range(args.generated)))
+        rows = record(folder, args.drivers, scenes)
     print("labelled ticks:", sum(r["true_task"] != "" for r in rows))
     print("shipped recogniser, Eq. 5.8 per tick:", _score(sogp_decisions(rows, None)))
     print("Ch. 4 filter over the SOGP confidences:", _score(sogp_decisions(rows, 0.95)))
