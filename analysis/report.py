@@ -24,6 +24,7 @@ from markupsafe import Markup
 
 from analysis import figures as fig
 from analysis.data import BASELINE, AnalysisConfig, Frames, StudyData, load_study, tidy
+from analysis.methods import methods, methods_markdown
 from analysis.metrics import BY_NAME, Metric, long_frame, ordered_metrics
 from analysis.recognition import describe, html_rows, recognition_tables
 from analysis.stats import analyse
@@ -361,7 +362,11 @@ def build_report(
     results_json = out / "results.json"
     stored = results if recognition is None else {**results, "recognition": recognition}
     results_json.write_text(json.dumps(stored, indent=1, allow_nan=False), encoding="utf-8")
-    html = _render_html(data, frames, positions, orders, sections, skipped, extra, recognition)
+    section = methods(data, frames)
+    (out / "methods.md").write_text(methods_markdown(section), encoding="utf-8")
+    html = _render_html(
+        data, frames, positions, orders, sections, skipped, extra, recognition, section
+    )
     html_path = out / "report.html"
     html_path.write_text(html, encoding="utf-8")
     say(f"wrote {html_path}")
@@ -476,6 +481,7 @@ def _render_html(
     skipped: list[dict],
     extra: list[dict],
     recognition: dict | None,
+    section: dict,
 ) -> str:
     """``templates/report.html.j2`` rendered with the study's values."""
     counted = set(frames.trials["participant"])
@@ -507,6 +513,7 @@ def _render_html(
         skipped=skipped,
         extra=extra,
         recognition=None if recognition is None else html_rows(recognition),
+        methods=section,
         warnings=all_warnings,
         aborted=frames.aborted.to_dict("records"),
         incomplete=incomplete.to_dict("records"),

@@ -1,0 +1,300 @@
+"""The report's Methods section: the platform, design, procedure, modes, measures and
+analysis of one study, and every deviation from the thesis with its reason, as sentences a
+researcher can paste into a paper (issue 18; thesis Sec. 7.5, 7.6).
+
+Everything study-specific is read from the stored study (protocol text, platform version,
+participants, the trials' stored mode settings); the deviations are :data:`DEVIATIONS`,
+which docs/methods.md lists in full.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass
+from typing import Any
+
+import pandas as pd
+
+from analysis.data import Frames, StudyData
+
+
+@dataclass(frozen=True, slots=True)
+class Deviation:
+    """One way the platform departs from the thesis, or fills a gap it leaves.
+
+    Attributes
+    ----------
+    topic : short name ("Simulation", "Contextual mode: candidates", ...).
+    modes : the modes it concerns (empty: every study).
+    text : the sentence for a methods section, with the reason and the thesis section.
+    """
+
+    topic: str
+    modes: tuple[str, ...]
+    text: str
+
+
+DEVIATIONS: tuple[Deviation, ...] = (
+    Deviation(
+        "Simulation",
+        (),
+        "The robot, its two laser scanners, IMU and camera and the scene are simulated in "
+        "pybullet at a 20 Hz control tick instead of Gazebo and ROS (thesis Sec. 7.6.1: the "
+        "study was run in simulation to remove hardware confounds); sensor noise is Gaussian "
+        "as in Sec. 7.6.1.1.",
+    ),
+    Deviation(
+        "Synthetic participants",
+        (),
+        "Synthetic participants, where present, are a behavioural model (route planning on "
+        "the map, stick delay, tremor and overshoot, distraction by the questions, a "
+        "NASA-TLX response model), not people; their results show what the protocol and "
+        "analysis do, not how people behave.",
+    ),
+    Deviation(
+        "Secondary task timeout",
+        (),
+        "A question not answered within the protocol's question timeout counts as an error "
+        "(the thesis gives no timeout, Sec. 7.6.1.2).",
+    ),
+    Deviation(
+        "Timed-out trials",
+        (),
+        "A main trial ends as timed out at the protocol's time limit (the thesis gives none); "
+        "its completion time and score are not measured times and are treated as the "
+        "protocol's [analysis] timeouts says (missing, or censored at the limit).",
+    ),
+    Deviation(
+        "Reactive mode: arbitration",
+        ("reactive_bn",),
+        "The reactive mode executes the most probable situation's action exclusively (free "
+        "travel: the user's command; object approach: stop at the safety distance; general "
+        "obstacle avoidance: the dynamic window's command, or stop when none is admissible), "
+        "as Sec. 3.2.1.1 describes; the blend of Eq. 3.2 with beta = the maximum posterior "
+        '(Eq. 3.11), which the thesis also states, is the setting arbitration = "blend".',
+    ),
+    Deviation(
+        "Contextual mode: candidates",
+        ("contextual_task",),
+        "The contextual mode considers the 10 semantic components nearest the robot as "
+        "candidates each tick (the thesis does not bound the candidate set, Sec. 6.2.2), to "
+        "keep the tick within its time budget.",
+    ),
+    Deviation(
+        "Contextual mode: no assistance without input",
+        ("contextual_task",),
+        "Below 5 % of full translational stick deflection the contextual mode does not "
+        "assist (no user intention to recognise); the command then passes the safety layer "
+        "only.",
+    ),
+    Deviation(
+        "Contextual mode: yielding",
+        ("contextual_task",),
+        "When the safety layer must scale the blended command below half and the user's own "
+        "command is freer, the contextual mode yields (beta = 0, the user's safe command), "
+        "so that a blocked assistance never holds the robot against the user (not in the "
+        "thesis; the safety layer itself is Sec. 7.6.1.2, footnote 31).",
+    ),
+    Deviation(
+        "Contextual mode: tracking",
+        ("contextual_task",),
+        "The predicted trajectory is tracked by a holonomic pure-pursuit controller instead "
+        "of the ROS navigation stack used in the thesis (Sec. 6.2.3).",
+    ),
+    Deviation(
+        "Contextual mode: recogniser",
+        ("contextual_task",),
+        "The shipped recogniser is trained on scripted demonstrations of the four "
+        "demonstrated task types (Sec. 7.4.1) with two other nearby components' features per "
+        "way point as negatives in every one-vs-all GP; its SOGPs keep 250 basis vectors "
+        "(the thesis: 500) to keep the model file small; the DP-GMM is truncated at 20 "
+        "components and clusters under 4 % of the points are merged into their nearest.",
+    ),
+    Deviation(
+        "Contextual mode: task labels",
+        ("contextual_task",),
+        "A recognised primitive is reported as the contextual task it performs on the "
+        "recognised component: the component's kind names the task (doorway, gap, dock, "
+        "wall) and, for objects, the primitive's dominant demonstrated motion decides "
+        "between inspection and bypass (Sec. 4.2.4, 7.4.2).",
+    ),
+)
+
+
+def _protocol(data: StudyData) -> dict[str, Any]:
+    try:
+        return tomllib.loads(str(data.study.get("protocol_text") or ""))
+    except tomllib.TOMLDecodeError:
+        return {}
+
+
+def _people(frames: Frames) -> str:
+    kinds = frames.participants["kind"].value_counts().to_dict()
+    parts = [f"{n} {kind}" for kind, n in sorted(kinds.items())]
+    return f"{int(sum(kinds.values()))} participants ({', '.join(parts)})"
+
+
+def _platform(data: StudyData, protocol: dict[str, Any]) -> str:
+    s = data.study
+    name = (protocol.get("study") or {}).get("name") or s.get("name", "")
+    sha = str(s.get("protocol_sha256") or "")[:12]
+    return (
+        f"The study was run with asa-study {s.get('platform_version', '?')} (protocol "
+        f"\u201c{name}\u201d, SHA-256 {sha}\u2026, study seed {s.get('seed', '?')}); the "
+        "protocol text and every control tick are stored with the data."
+    )
+
+
+def _design(frames: Frames, protocol: dict[str, Any]) -> str:
+    modes = protocol.get("modes") or {}
+    scheme = str(modes.get("counterbalancing") or "the protocol's scheme").replace("_", " ")
+    hidden = " The participant was not told which mode was active." if modes.get("hidden") else ""
+    return (
+        f"{_people(frames)} drove in a within-subjects design with the control mode as the "
+        f"only factor ({', '.join(frames.modes)}); the order of the modes was balanced by "
+        f"{scheme} counterbalancing.{hidden}"
+    )
+
+
+_INSTRUMENTS = {"nasa_tlx": "the NASA-TLX"}
+_WEIGHTS = {
+    "per_trial": "ratings and the 15 pairwise comparisons after every trial",
+    "once": "ratings after every trial, the pairwise comparisons once",
+    "raw": "ratings only",
+}
+_GATES = {
+    "auto": "the corrected p when Mauchly's test rejects sphericity",
+    "uncorrected": "the uncorrected p",
+    "greenhouse_geisser": "always the corrected p",
+}
+
+
+def _phase(p: dict[str, Any]) -> str:
+    kind = p.get("kind", "")
+    if kind == "training":
+        questions = ", with questions" if p.get("secondary") else ""
+        return (
+            f"training in {p.get('scenario')} ({p.get('duration_s', 0):.0f} s per mode{questions})"
+        )
+    if kind == "practice":
+        fail = "excluded" if p.get("on_fail") == "exclude" else "kept"
+        hits = int(p.get("max_collisions", 0))
+        clean = "without a collision" if hits == 0 else f"with at most {hits} collisions"
+        return (
+            f"a practice course ({p.get('scenario')}) once per mode, to be finished within "
+            f"{p.get('time_limit_s', 0):.0f} s {clean} in at most {p.get('max_attempts', 1)} "
+            f"attempts (a participant who fails them all is {fail})"
+        )
+    if kind == "baseline":
+        return f"{p.get('questions', 0)} arithmetic questions without driving (the baseline)"
+    if kind == "main":
+        route = " \u2192 ".join(p.get("route") or [])
+        parts = [f"one main trial per mode in {p.get('scenario')} along {route}"]
+        if p.get("inspection"):
+            parts.append("inspecting the object on the way")
+        if p.get("secondary"):
+            parts.append(f"questions in blocks of {p.get('block_size', '?')} in the marked region")
+        parts.append(f"a time limit of {p.get('timeout_s', 0):.0f} s")
+        if p.get("end_on_collision"):
+            parts.append("a collision ending the trial as a crash")
+        after = p.get("after_trial") or {}
+        if after:
+            parts.append(
+                f"followed by {_INSTRUMENTS.get(after.get('instrument'), 'a questionnaire')}"
+                f" ({_WEIGHTS.get(after.get('weights'), after.get('weights'))})"
+            )
+        return ", ".join(parts)
+    return {"briefing": "a briefing", "experience": "an experience questionnaire"}.get(kind, "")
+
+
+def _procedure(protocol: dict[str, Any]) -> str:
+    steps = [s for s in (_phase(p) for p in protocol.get("phases") or []) if s]
+    if not steps:
+        return "The protocol's phases are not stored with this study."
+    timeout = (protocol.get("secondary") or {}).get("timeout_s")
+    tail = f" A question unanswered after {timeout:g} s counted as an error." if timeout else ""
+    return f"Each session consisted of {'; '.join(steps)}.{tail}"
+
+
+def _stored_settings(data: StudyData, mode: str) -> dict[str, Any] | None:
+    trials = data.tables.get("trial", pd.DataFrame())
+    if trials.empty or "outcome" not in trials:
+        return None
+    for mode_, outcome in zip(trials["mode"], trials["outcome"], strict=True):
+        if mode_ == mode and isinstance(outcome, dict) and "mode_settings" in outcome:
+            return dict(outcome["mode_settings"])
+    return None
+
+
+def _mode_text(mode: str, data: StudyData, protocol: dict[str, Any]) -> str:
+    stored = _stored_settings(data, mode)
+    given = ((protocol.get("modes") or {}).get("settings") or {}).get(mode) or {}
+    settings = stored if stored is not None else given
+    shown = {k: v for k, v in sorted(settings.items()) if not isinstance(v, dict | list)}
+    if not shown:
+        where = "the platform's defaults (not stored with trials of this version)"
+        return f"{mode}: {where}" if stored is None else f"{mode}: no settings"
+    source = "as stored with its trials" if stored is not None else "as the protocol sets them"
+    values = ", ".join(f"{k} = {v}" for k, v in shown.items())
+    return f"{mode} ({source}): {values}"
+
+
+def _modes(frames: Frames, data: StudyData, protocol: dict[str, Any]) -> str:
+    return "; ".join(_mode_text(m, data, protocol) for m in frames.modes) + "."
+
+
+def _analysis(data: StudyData) -> str:
+    c = data.config
+    timeouts = (
+        "left out as missing (the participant dropped listwise from that test)"
+        if c.timeouts == "exclude"
+        else "kept at the time limit as right-censored values"
+    )
+    gate = _GATES.get(c.gate, c.gate)
+    return (
+        f"Each metric ({', '.join(c.metrics) or 'the report defaults'}) was analysed by a "
+        f"one-way repeated-measures ANOVA over the modes at \u03b1 = {c.alpha:g}, with "
+        f"Mauchly's test and the Greenhouse\u2013Geisser correction ({gate}), followed by "
+        f"Fisher's LSD ({c.posthoc.replace('_', ' ')}) where the omnibus test rejected; the "
+        f"score is the completion time plus {c.collision_penalty_s:g} s per collision; the "
+        f"completion time and score of timed-out trials were {timeouts} (thesis Sec. 7.6.2)."
+    )
+
+
+def methods(data: StudyData, frames: Frames) -> dict[str, Any]:
+    """The Methods section of one study's report.
+
+    Returns
+    -------
+    dict
+        ``paragraphs``: list of {"title", "text"} (platform, design, procedure, modes,
+        analysis); ``deviations``: list of {"topic", "text"}, those of :data:`DEVIATIONS`
+        that concern every study or one of its modes.
+    """
+    protocol = _protocol(data)
+    paragraphs = [
+        ("Platform", _platform(data, protocol)),
+        ("Participants and design", _design(frames, protocol)),
+        ("Procedure", _procedure(protocol)),
+        ("Assistance modes", _modes(frames, data, protocol)),
+        ("Analysis", _analysis(data)),
+    ]
+    modes = set(frames.modes)
+    deviations = [d for d in DEVIATIONS if not d.modes or modes & set(d.modes)]
+    return {
+        "paragraphs": [{"title": t, "text": x} for t, x in paragraphs],
+        "deviations": [{"topic": d.topic, "text": d.text} for d in deviations],
+    }
+
+
+def methods_markdown(section: dict[str, Any]) -> str:
+    """The Methods section of :func:`methods` as Markdown (``methods.md`` of a report)."""
+    lines = ["# Methods", ""]
+    for p in section["paragraphs"]:
+        lines += [f"**{p['title']}.** {p['text']}", ""]
+    lines += ["## Deviations from the thesis", ""]
+    lines += [f"- *{d['topic']}.* {d['text']}" for d in section["deviations"]]
+    return "\n".join(lines) + "\n"
+
+
+__all__ = ["DEVIATIONS", "Deviation", "methods", "methods_markdown"]

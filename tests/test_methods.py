@@ -1,0 +1,80 @@
+"""The report's Methods section (issue 18): built from the stored study alone, the
+deviations that concern the study's modes, methods.md beside report.html, and
+docs/methods.md listing every deviation."""
+
+from __future__ import annotations
+
+import json
+import os
+import sqlite3
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from analysis.data import load_study, tidy
+from analysis.methods import DEVIATIONS, methods
+from analysis.report import build_report
+
+sys.path.insert(0, str(Path(__file__).parent))
+from fixtures_db import FixtureSettings, make_study_db  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+SETTINGS = FixtureSettings(n_participants=6, samples=40, questions=4, baseline_questions=6)
+
+
+@pytest.fixture(scope="module")
+def study_db(tmp_path_factory) -> Path:
+    rng = np.random.default_rng(int(os.environ.get("ASA_TEST_SEED", "20261126")))
+    return make_study_db(tmp_path_factory.mktemp("m") / "study.db", rng, settings=SETTINGS)
+
+
+def test_paragraphs_come_from_the_stored_protocol(study_db):
+    data = load_study(study_db)
+    section = methods(data, tidy(data))
+    text = {p["title"]: p["text"] for p in section["paragraphs"]}
+    assert set(text) == {
+        "Platform",
+        "Participants and design",
+        "Procedure",
+        "Assistance modes",
+        "Analysis",
+    }
+    assert str(data.study["protocol_sha256"])[:12] in text["Platform"]
+    assert "90 s" in text["Procedure"] and "5 attempts" in text["Procedure"]  # thesis-7-6
+    assert "8 s counted as an error" in text["Procedure"]
+    assert "left out as missing" in text["Analysis"]
+    topics = {d["topic"] for d in section["deviations"]}
+    assert {d.topic for d in DEVIATIONS} == topics  # all three modes: every deviation
+
+
+def test_stored_mode_settings_are_reported(study_db, tmp_path):
+    copy = tmp_path / "copy.db"
+    copy.write_bytes(study_db.read_bytes())
+    with sqlite3.connect(copy) as con:
+        con.execute(
+            "UPDATE trial SET outcome = json_set(outcome, '$.mode_settings', json(?)) "
+            "WHERE mode = 'reactive_bn'",
+            (json.dumps({"arbitration": "exclusive", "d_safe": 0.3}),),
+        )
+    data = load_study(copy)
+    modes = {p["title"]: p["text"] for p in methods(data, tidy(data))["paragraphs"]}
+    assert "reactive_bn (as stored with its trials): arbitration = exclusive, d_safe = 0.3" in (
+        modes["Assistance modes"]
+    )
+    assert "manual: the platform's defaults" in modes["Assistance modes"]
+
+
+def test_report_has_the_section_and_methods_md(study_db, tmp_path):
+    paths = build_report(study_db, tmp_path / "r")
+    html = paths.html.read_text(encoding="utf-8")
+    assert '<h2 id="methods">Methods</h2>' in html
+    md = (tmp_path / "r" / "methods.md").read_text(encoding="utf-8")
+    assert md.startswith("# Methods") and "## Deviations from the thesis" in md
+
+
+def test_docs_methods_lists_every_deviation():
+    page = (ROOT / "docs" / "methods.md").read_text(encoding="utf-8")
+    for d in DEVIATIONS:
+        assert d.text in page, d.topic
