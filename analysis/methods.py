@@ -52,6 +52,14 @@ DEVIATIONS: tuple[Deviation, ...] = (
         "analysis do, not how people behave.",
     ),
     Deviation(
+        "Training and practice limits",
+        (),
+        "The training time per mode, the practice course's time limit and its number of "
+        "attempts are the protocol's choices (the thesis gives \u201ca specific time "
+        "limit\u201d and no duration or number of attempts, Sec. 7.6.1.3); the Procedure "
+        "paragraph gives the values used.",
+    ),
+    Deviation(
         "Secondary task timeout",
         (),
         "A question not answered within the protocol's question timeout counts as an error "
