@@ -16,6 +16,7 @@ alone, ``v = g`` ("execute the corresponding assistive action exclusively", Sec.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from dataclasses import dataclass, field
@@ -352,6 +353,10 @@ class ReactiveBNMode:
         self.settings = settings if settings is not None else ReactiveSettings()
         self.robot_: RobotModel | None = None
         self.grid_: SectorGrid | None = None
+
+    def settings_dict(self) -> dict[str, Any]:
+        """The effective :class:`ReactiveSettings` (``arbitration`` among them), DWA's nested."""
+        return dataclasses.asdict(self.settings)
 
     def reset(self, robot: RobotModel) -> None:
         s = self.settings
