@@ -11,6 +11,7 @@ layer. Choices where the thesis is silent: docs/decisions.md.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from dataclasses import dataclass, field
@@ -389,6 +390,10 @@ class ContextualTaskMode:
 
     def reset(self, robot: RobotModel) -> None:
         self.robot_ = robot
+
+    def settings_dict(self) -> dict[str, Any]:
+        """The effective :class:`ContextualSettings`, tracking's nested."""
+        return dataclasses.asdict(self.settings)
 
     def label_tasks(self) -> dict[str, str]:
         """The mode's labels are contextual task types (:mod:`autonomy.task_types`): each

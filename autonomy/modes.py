@@ -69,15 +69,30 @@ def with_defaults(mode: Any) -> Mode:
     return mode if isinstance(mode, Mode) else _WithDefaults(mode)
 
 
+# the optional hooks of :class:`Mode` (those with a default)
+_HOOKS = ("label_tasks", "settings_dict")
+
+
 class _WithDefaults(Mode):
     """A mode with :class:`Mode`'s defaults for the hooks it lacks; its own members
-    (``name``, ``settings``, ...) pass through."""
+    (``name``, ``settings``, its own hooks, ...) pass through. For a mode without
+    ``settings_dict`` whose ``settings`` is a dataclass, ``settings_dict`` gives
+    ``dataclasses.asdict`` of it (a mode from another package written before the hook)."""
 
     def __init__(self, mode: Any) -> None:
         self.mode = mode
         # its bound methods, so that a tick calls them without an extra call
         self.reset = mode.reset
         self.step = mode.step
+        for hook in _HOOKS:  # the class's defaults would shadow the mode's own
+            if hasattr(mode, hook):
+                setattr(self, hook, getattr(mode, hook))
+
+    def settings_dict(self) -> dict[str, Any]:
+        settings = getattr(self.mode, "settings", None)  # the adapter's one probe
+        if dataclasses.is_dataclass(settings) and not isinstance(settings, type):
+            return dataclasses.asdict(settings)
+        return {}
 
     def __getattr__(self, attr: str) -> Any:
         if attr == "mode":  # not set yet

@@ -7,12 +7,16 @@ d_safe))`` if ``d > d_safe`` else 0 (3.6, 3.7); GOA, General Obstacle Avoidance,
 ``g = DWA(u, z)`` (3.8, :mod:`autonomy.dwa`). The environment model is a local occupancy
 grid split into sectors (3.12-3.14, :func:`cell_states`); the user input model a wrapped
 normal over the input direction (3.15-3.18); the posteriors (3.19-3.21) are normalised
-over the situations, the MAP situation gives ``g`` and ``beta`` is its posterior (3.10,
-3.11); ``v`` by eq. (3.2). Choices where the thesis is silent: docs/decisions.md.
+over the situations and the MAP situation gives ``g`` (3.10). The command sent follows
+the setting ``arbitration``: ``"exclusive"`` (default) executes the MAP situation's action
+alone, ``v = g`` ("execute the corresponding assistive action exclusively", Sec. 3.2 and
+3.2.1.1); ``"blend"`` follows eq. (3.2) with ``beta`` the MAP posterior (3.11), as Sec.
+3.2.1.2 also reads. Choices where the thesis is silent: docs/decisions.md.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from dataclasses import dataclass, field
@@ -30,6 +34,7 @@ from autonomy.types import EMPTY_PATH, Assist, RobotModel
 SITUATIONS = ("FT", "OA", "GOA")
 FREE, OCCUPIED, UNKNOWN = 0, 1, 2
 _WINDINGS = (2 * math.pi * np.array([-1.0, 0.0, 1.0]))[:, None]  # shifts of the circle
+ARBITRATIONS = ("exclusive", "blend")  # values of ReactiveSettings.arbitration
 
 
 @dataclass(frozen=True, slots=True)
@@ -42,6 +47,8 @@ class ReactiveSettings:
     sigma_deg: float = 10.0  # [deg] std. dev. of the input direction (3.15)
     d_safe: float = 0.15  # [m] safe distance of Object Approach (3.7)
     min_translation: float = 0.02  # [m/s] below this the input is a pure rotation
+    # "exclusive": v = g of the MAP situation (Sec. 3.2.1.1); "blend": eq. (3.2), beta (3.11)
+    arbitration: str = "exclusive"
     dwa: DWASettings = field(default_factory=DWASettings)
 
     def __post_init__(self) -> None:
@@ -65,6 +72,11 @@ class ReactiveSettings:
                 raise ValueError(
                     f"reactive_bn setting {name}: must be >= 0, got {getattr(self, name)!r}"
                 )
+        if self.arbitration not in ARBITRATIONS:
+            raise ValueError(
+                f"reactive_bn setting arbitration: must be one of {', '.join(ARBITRATIONS)}, "
+                f"got {self.arbitration!r}"
+            )
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -295,6 +307,43 @@ def oa_attenuation(d: np.ndarray | float, d_safe: float) -> np.ndarray:
         return np.where(d > d_safe, np.exp(-1.0 / gap), 0.0)  # Eq. (3.7)
 
 
+def arbitrate_exclusive(
+    u: np.ndarray, g: np.ndarray, label: str, confidence: float
+) -> tuple[np.ndarray, float]:
+    """The MAP situation's action alone, ``v = g`` (Sec. 3.2 and 3.2.1.1: "execute the
+    corresponding assistive action exclusively"; 3.5-3.8).
+
+    ``beta`` reports whose command is executed, so that ``v = blend(u, g, beta)`` (3.2)
+    still holds: 0 in FT (``g = u``, the user's command runs as given), 1 in OA and GOA
+    (the robot's command replaces ``u``) and for a pure rotation whose residual
+    translation :func:`hold_creep` dropped. ``confidence`` (the MAP posterior, 3.11) is
+    not used; the posteriors are in the Assist's scores.
+
+    Returns
+    -------
+    v : (3,) the command sent (v_x [m/s], v_y [m/s], omega [rad/s]).
+    beta : 0.0 or 1.0.
+    """
+    return g.copy(), 0.0 if label == "FT" and np.array_equal(g, u) else 1.0
+
+
+def arbitrate_blend(
+    u: np.ndarray, g: np.ndarray, label: str, confidence: float
+) -> tuple[np.ndarray, float]:
+    """Eq. (3.2) with ``beta`` the MAP posterior (3.11): ``v = (1 - beta) u + beta g``.
+
+    Returns
+    -------
+    v : (3,) the command sent (v_x [m/s], v_y [m/s], omega [rad/s]).
+    beta : ``confidence``, in [0, 1].
+    """
+    return blend(u, g, confidence), confidence  # Eq. (3.2)
+
+
+# ReactiveSettings.arbitration -> (u, g, MAP label, MAP posterior) -> (v, beta)
+ARBITRATE = {"exclusive": arbitrate_exclusive, "blend": arbitrate_blend}
+
+
 class ReactiveBNMode:
     """The reactive Bayesian-network mode; stateless between ticks."""
 
@@ -305,6 +354,10 @@ class ReactiveBNMode:
         self.robot_: RobotModel | None = None
         self.grid_: SectorGrid | None = None
 
+    def settings_dict(self) -> dict[str, Any]:
+        """The effective :class:`ReactiveSettings` (``arbitration`` among them), DWA's nested."""
+        return dataclasses.asdict(self.settings)
+
     def reset(self, robot: RobotModel) -> None:
         s = self.settings
         self.robot_ = robot
@@ -313,7 +366,8 @@ class ReactiveBNMode:
         )
 
     def step(self, obs: Any, u: np.ndarray) -> Assist:
-        """One tick: recognise the situation from ``obs.scans`` and ``u``, act, blend.
+        """One tick: recognise the situation from ``obs.scans`` and ``u``, act, arbitrate
+        (``settings.arbitration``).
 
         Parameters
         ----------
@@ -329,8 +383,8 @@ class ReactiveBNMode:
         p_occ = float(p_sector.max())
         t_env = time.perf_counter()
 
-        path = EMPTY_PATH
-        if math.hypot(u[0], u[1]) < s.min_translation:  # pure rotation: pass through
+        rotation = math.hypot(u[0], u[1]) < s.min_translation
+        if rotation:  # pure rotation: pass through
             posterior, situation, beta = np.array([1.0, 0.0, 0.0]), 0, 0.0
             d, alpha = math.nan, 1.0
         else:
@@ -345,14 +399,9 @@ class ReactiveBNMode:
             alpha = float(oa_attenuation(d, s.d_safe))
         t_inf = time.perf_counter()
 
-        if SITUATIONS[situation] == "OA":
-            g = alpha * u  # Eq. (3.6)
-        elif SITUATIONS[situation] == "GOA":
-            result = dwa(u, obs.points, obs.velocity, robot, settings=s.dwa)  # Eq. (3.8)
-            g, path = result.v, result.path
-        else:
-            g = u.copy()  # Eq. (3.5)
-        v = blend(u, g, beta)  # Eq. (3.2)
+        label = SITUATIONS[situation]
+        g, path = self._act(label, u, obs, alpha, rotation=rotation)
+        v, beta = ARBITRATE[s.arbitration](u, g, label, beta)
         end = time.perf_counter()
         scores = dict(zip(SITUATIONS, map(float, posterior), strict=True))
         scores.update(p_occ=p_occ, d=d, alpha=alpha)
@@ -360,7 +409,7 @@ class ReactiveBNMode:
             v=v,
             g=g,
             beta=beta,
-            label=SITUATIONS[situation],
+            label=label,
             target="",
             scores=scores,
             predicted_path=path,
@@ -371,6 +420,48 @@ class ReactiveBNMode:
                 "total": (end - start) * 1e3,
             },
         )
+
+    def _act(
+        self, label: str, u: np.ndarray, obs: Any, alpha: float, *, rotation: bool
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The MAP situation's action ``g`` (3,) and the DWA's predicted path (k, 3);
+        ``rotation``: the input was taken for a pure rotation (FT, passed through)."""
+        s, robot = self.settings, self.robot_
+        if label == "OA":
+            return alpha * u, EMPTY_PATH  # Eq. (3.6): zero within d_safe
+        if label == "GOA":
+            # Eq. (3.8); zero when no sampled twist is admissible
+            result = dwa(u, obs.points, obs.velocity, robot, settings=s.dwa)
+            return result.v, result.path
+        if rotation and s.arbitration == "exclusive":
+            return hold_creep(u, obs.points, robot, s.d_safe), EMPTY_PATH
+        return u.copy(), EMPTY_PATH  # Eq. (3.5)
+
+
+def hold_creep(u: np.ndarray, points: np.ndarray, robot: RobotModel, d_safe: float) -> np.ndarray:
+    """A pure rotation's command with its residual translation (below ``min_translation``)
+    dropped when, held for one tick, it would bring the footprint within ``d_safe`` [m]
+    of a laser point along its direction (OA's ``alpha = 0`` there, Eq. 3.7); the
+    rotation passes through. Without it a gentle push at a wall would creep into it.
+
+    Parameters
+    ----------
+    u : (3,) command (v_x [m/s], v_y [m/s], omega [rad/s]).
+    points : (m, 2) [m] laser points in the robot frame.
+    robot : footprint and control tick ``dt`` [s].
+    d_safe : [m] safe distance.
+
+    Returns
+    -------
+    (3,) ``u``, or ``(0, 0, omega)``.
+    """
+    speed = math.hypot(u[0], u[1])
+    if speed == 0.0:
+        return u.copy()
+    d = float(np.min(translation_distance(points, u[:2] / speed, robot), initial=math.inf))
+    if d - speed * robot.dt >= d_safe:
+        return u.copy()
+    return np.array([0.0, 0.0, u[2]])
 
 
 @register("reactive_bn")

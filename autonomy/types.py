@@ -226,3 +226,9 @@ class Mode(Protocol):
         trial so the analysis scores recognition from the data alone); None (the default,
         for a class that subclasses :class:`Mode`): the labels are no task types."""
         return None
+
+    def settings_dict(self) -> dict[str, Any]:
+        """The mode's effective settings, stored with each trial: a mode with a settings
+        dataclass returns ``dataclasses.asdict`` of it (plain values; the trial loop makes
+        them JSON-ready); {} (the default) for a mode without settings."""
+        return {}

@@ -147,3 +147,42 @@ def test_manual_mode_sends_the_joystick_command(u):
     np.testing.assert_array_equal(out.v, u)
     assert out.beta == 0.0 and out.label == "" and out.target == ""
     assert out.predicted_path.shape == (0, 3)
+
+
+def test_settings_dict_hook_for_every_kind_of_mode():
+    """The trial stores ``settings_dict()``: a mode's own, the registry wrapper's for a
+    foreign class with a settings dataclass, ``{}`` without settings."""
+    import dataclasses
+
+    reactive = make_mode("reactive_bn", arbitration="blend")
+    assert reactive.settings_dict()["arbitration"] == "blend"
+    assert reactive.settings_dict()["dwa"] == dataclasses.asdict(reactive.settings.dwa)
+    assert make_mode("manual").settings_dict() == {}
+
+    @dataclasses.dataclass(frozen=True)
+    class Gain:
+        k: float = 2.0
+
+    class Foreign:  # another package's mode, written before the hooks
+        name = "foreign"
+
+        def __init__(self, **kw):
+            self.settings = Gain(**kw)
+
+        def reset(self, robot):
+            pass
+
+        def step(self, obs, u):
+            raise NotImplementedError
+
+        def label_tasks(self):
+            return {"x": "doorway"}
+
+    from autonomy.modes import with_defaults
+
+    wrapped = with_defaults(Foreign(k=3.0))
+    assert wrapped.settings_dict() == {"k": 3.0}
+    assert wrapped.label_tasks() == {"x": "doorway"}  # its own hook, not the default
+    bare = Foreign()
+    del bare.settings
+    assert with_defaults(bare).settings_dict() == {}

@@ -34,8 +34,8 @@ ROBOT = RobotModel.rectangle(0.6, 0.5)
 SETTINGS = ReactiveSettings()
 
 
-def mode() -> ReactiveBNMode:
-    m = ReactiveBNMode()
+def mode(arbitration: str = "exclusive") -> ReactiveBNMode:
+    m = ReactiveBNMode(ReactiveSettings(arbitration=arbitration))
     m.reset(ROBOT)
     return m
 
@@ -184,9 +184,9 @@ def random_observation(seed: int) -> object:
     u=st.tuples(st.floats(-1, 1), st.floats(-1, 1), st.floats(-1.2, 1.2)),
 )
 def test_posteriors_sum_to_one_and_beta_in_unit_interval(scene, u):
-    m = mode()
     u = np.array(u)
-    out = m.step(random_observation(scene), u)
+    obs = random_observation(scene)
+    out = mode("blend").step(obs, u)
     post = np.array([out.scores[s] for s in SITUATIONS])
     assert post.sum() == pytest.approx(1.0) and np.all(post >= 0)
     assert 0.0 <= out.beta <= 1.0
@@ -194,6 +194,13 @@ def test_posteriors_sum_to_one_and_beta_in_unit_interval(scene, u):
     if math.hypot(u[0], u[1]) >= SETTINGS.min_translation:
         assert out.beta == pytest.approx(post.max())
         assert out.label == SITUATIONS[int(np.argmax(post))]
+    # exclusive: the same recognition, v = g alone, beta 0 (u as given) or 1 (g replaces u)
+    ex = mode("exclusive").step(obs, u)
+    assert ex.label == out.label and ex.scores.keys() == out.scores.keys()
+    np.testing.assert_array_equal([ex.scores[s] for s in SITUATIONS], post)
+    np.testing.assert_array_equal(ex.v, ex.g)
+    assert ex.beta == (0.0 if ex.label == "FT" and np.array_equal(ex.g, u) else 1.0)
+    np.testing.assert_allclose(ex.v, blend(u, ex.g, ex.beta))
     assert 0.0 <= out.scores["p_occ"] <= 1.0
     np.testing.assert_allclose(out.v, blend(u, out.g, out.beta))
     assert np.all(np.isfinite(out.v))
@@ -213,11 +220,16 @@ def test_free_space_is_free_travel():
 def test_driving_at_a_wall_in_the_zone_is_object_approach(clearance):
     obs = synthetic_observation(wall_ahead(clearance))
     u = np.array([0.6, 0.0, 0.0])
-    out = mode().step(obs, u)
+    out = mode("blend").step(obs, u)
     assert out.label == "OA"
     assert out.scores["d"] == pytest.approx(clearance, abs=1e-6)
     assert out.v[0] < u[0]  # slower towards the wall
     assert out.v[0] == pytest.approx(u[0] * (1 - out.beta + out.beta * out.scores["alpha"]))
+    ex = mode("exclusive").step(obs, u)  # alpha u alone (3.6), zero within d_safe (3.7)
+    assert ex.label == "OA" and ex.beta == 1.0
+    np.testing.assert_array_equal(ex.v, ex.scores["alpha"] * u)
+    if clearance <= SETTINGS.d_safe:
+        np.testing.assert_array_equal(ex.v, np.zeros(3))
 
 
 def test_driving_into_free_space_between_obstacles_is_obstacle_avoidance():
@@ -257,6 +269,13 @@ def test_no_memory_between_ticks(rng):
 
 
 def test_settings_are_validated_and_reach_the_mode():
+    assert SETTINGS.arbitration == "exclusive"
+    for bad in ("mix", "Exclusive", None):
+        with pytest.raises(ValueError, match="reactive_bn setting arbitration: .*exclusive, blend"):
+            ReactiveSettings(arbitration=bad)
+    with pytest.raises(ValueError, match="setting arbitration"):
+        make_mode("reactive_bn", arbitration="max")
+    assert make_mode("reactive_bn", arbitration="blend").settings.arbitration == "blend"
     with pytest.raises(ValueError, match="sector_deg"):
         ReactiveSettings(sector_deg=7.0)
     with pytest.raises(ValueError, match="sigma_deg"):

@@ -218,3 +218,29 @@ def test_wall_clock_paces_and_measures_jitter():
     assert time.perf_counter() - start >= 0.095
     jitter = clock.jitter_p99_ms()
     assert jitter is not None and math.isfinite(jitter) and jitter >= 0.0
+
+
+def test_the_outcome_stores_the_modes_effective_settings(tmp_path, seed):
+    """A standalone reactive trial stores its settings, the arbitration among them, as JSON."""
+    import json
+
+    from study.engine.standalone import standalone_trial
+
+    result, engine = standalone_trial(
+        tmp_path,
+        ScriptedParticipant(np.random.default_rng(seed)),
+        mode="reactive_bn",
+        scenario="practice_course",
+        route=("dock",),
+        timeout_s=1.0,
+        seed=seed,
+        mode_settings={"arbitration": "blend", "dwa": {"horizon_s": 1.0}},
+    )
+    with Session(engine) as s:
+        stored = s.scalars(select(Trial.outcome).where(Trial.id == result.trial_id)).one()
+    engine.dispose()
+    settings = result.outcome["mode_settings"]
+    assert settings["arbitration"] == "blend" and settings["dwa"]["horizon_s"] == 1.0
+    assert settings["d_safe"] == 0.15  # defaults too: the effective settings
+    stored = json.loads(stored) if isinstance(stored, str) else stored
+    assert stored["mode_settings"] == settings

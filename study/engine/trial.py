@@ -191,6 +191,8 @@ class TrialLoop:
         # what the mode's labels mean, to score its recognition (None: situations, unscored)
         self.label_tasks = dict(table) if table is not None else None
         self.tally = RecognitionTally(table) if table is not None else None
+        # the mode's effective settings, stored with the outcome (e.g. reactive arbitration)
+        self.mode_settings = jsonable(mode.settings_dict()) if mode is not None else None
 
     # -------------------------------------------------------------- run
 
@@ -434,6 +436,8 @@ class TrialLoop:
             )
             if self.max_collisions is not None:
                 outcome["passed"] = bool(po.completed and po.collisions <= self.max_collisions)
+        if self.mode_settings is not None:
+            outcome["mode_settings"] = self.mode_settings
         if self.label_tasks is not None:
             outcome["label_tasks"] = self.label_tasks
         if self.tally is not None and self.tally.counts:  # the driver said what they did

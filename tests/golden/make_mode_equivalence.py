@@ -12,8 +12,10 @@ geometry, one CDF pass, edge-wise translation distance, inlined ``sinc``, cached
 radius) and stored in the test as a literal table. This script reproduces them with the
 current code: the JSON it writes agrees with that table to the test's tolerance (when the
 table moved here, 383 of its 384 numbers were bit-identical and one differed in the last
-bit). If the generators' draws change, rerun it from the repository root (so that the
-checkout's code is imported)::
+bit). The reactive mode's rows record ``arbitration = "blend"`` (eq. 3.2 with ``beta`` the
+MAP posterior), the only behaviour before the setting existed; :func:`golden_mode` pins
+it, so the default ``"exclusive"`` left the JSON unchanged. If the generators' draws
+change, rerun it from the repository root (so that the checkout's code is imported)::
 
     python -m tests.golden.make_mode_equivalence
 """
@@ -28,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from autonomy.dwa import dwa
-from autonomy.reactive_bn import ReactiveBNMode
+from autonomy.reactive_bn import ReactiveBNMode, ReactiveSettings
 from autonomy.safety import safe_command
 from autonomy.types import RobotModel
 from sim.testing import cluttered_segments, synthetic_observation
@@ -43,6 +45,11 @@ COLUMNS = (
     "dwa_vx", "dwa_vy", "dwa_wz", "dwa_clearance", "dwa_n_checked",
     "safe_vx", "safe_vy", "safe_wz", "safe_scale", "safe_scale_fast_dwa",
 )  # fmt: skip
+
+
+def golden_mode() -> ReactiveBNMode:
+    """The reactive mode the rows were made with: ``arbitration = "blend"``."""
+    return ReactiveBNMode(ReactiveSettings(arbitration="blend"))
 
 
 def cases(n: int = N_CASES) -> Iterator[tuple[RobotModel, Observation, np.ndarray]]:
@@ -97,7 +104,7 @@ def load(path: Path = PATH) -> list[tuple[list[float], str]]:
 
 
 def main() -> None:
-    mode = ReactiveBNMode()
+    mode = golden_mode()
     rows = []
     for robot, obs, u in cases():
         floats, label = outputs(mode, robot, obs, u)
