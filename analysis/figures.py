@@ -167,7 +167,13 @@ def clearance_counts(
     return pd.DataFrame(by_mode, index=pd.Index(CLEARANCE_EDGES_M, name="bin_low_m"))
 
 
-def clearance_figure(counts: pd.DataFrame, modes: tuple[str, ...]) -> Figure:
+def clearance_figure(
+    counts: pd.DataFrame,
+    modes: tuple[str, ...],
+    *,
+    xlabel: str = "clearance to the nearest obstacle [m] (last bin: >= 2 m)",
+    title: str = "Clearance distribution per mode",
+) -> Figure:
     """Share of ticks per 0.1 m clearance bin, one step line per mode (Fig. 7.44b)."""
     fig = _figure(8.0, 3.2, bottom=0.16)
     ax = fig.subplots()
@@ -176,9 +182,9 @@ def clearance_figure(counts: pd.DataFrame, modes: tuple[str, ...]) -> Figure:
         share = c / c.sum() if c.sum() > 0 else c
         edges = np.append(counts.index.to_numpy(float), 2.1)
         ax.stairs(share, edges, color=_colour(mode, modes), label=mode, linewidth=1.6)
-    ax.set_xlabel("clearance to the nearest obstacle [m] (last bin: >= 2 m)")
+    ax.set_xlabel(xlabel)
     ax.set_ylabel("share of ticks")
-    ax.set_title("Clearance distribution per mode")
+    ax.set_title(title)
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
     return fig

@@ -22,6 +22,7 @@ import jinja2
 import pandas as pd
 from markupsafe import Markup
 
+from analysis import crashes
 from analysis import figures as fig
 from analysis.data import BASELINE, AnalysisConfig, Frames, StudyData, load_study, tidy
 from analysis.methods import methods, methods_markdown
@@ -359,13 +360,14 @@ def build_report(
     written.csv(_summary_table(results, data.config.metrics), out / "tables" / "summary.csv")
     say("figures: TLX profile, clearance, paths")
     extra = _extra_figures(data, frames, out, written)
+    crash = _crashes(data, frames, out, written) if data.config.end_on_collision else None
     results_json = out / "results.json"
     stored = results if recognition is None else {**results, "recognition": recognition}
     results_json.write_text(json.dumps(stored, indent=1, allow_nan=False), encoding="utf-8")
     section = methods(data, frames)
     (out / "methods.md").write_text(methods_markdown(section), encoding="utf-8")
     html = _render_html(
-        data, frames, positions, orders, sections, skipped, extra, recognition, section
+        data, frames, positions, orders, sections, skipped, extra, recognition, section, crash
     )
     html_path = out / "report.html"
     html_path.write_text(html, encoding="utf-8")
@@ -467,6 +469,33 @@ def _extra_figures(data: StudyData, frames: Frames, out: Path, written: _Written
     return extra
 
 
+def _crashes(data: StudyData, frames: Frames, out: Path, written: _Written) -> dict:
+    """Sec. 7.5: Table 7.10 (CSV and rows) and the laser clearance distribution without the
+    crashed trials (Fig. 7.44b); the template's ``crash`` entry."""
+    trial_table = data.tables["trial"]
+    table = crashes.table_7_10(frames.trials, trial_table)
+    written.csv(table, out / "tables" / "clearance_table_7_10.csv")
+    counts = crashes.distribution(frames.trials, trial_table, fig.CLEARANCE_EDGES_M)
+    figure = None
+    if counts.to_numpy().sum() > 0:
+        written.csv(counts.reset_index(), out / "tables" / "lrf_clearance_distribution.csv")
+        drawn = fig.clearance_figure(
+            counts,
+            frames.modes,
+            xlabel="minimum laser range from the robot's centre [m] (last bin: >= 2 m)",
+            title="Clearance distribution per mode, crashed trials left out",
+        )
+        title = "Clearance distribution per mode, all trials except the crashed ones (Fig. 7.44b)"
+        figure = _extra(written, drawn, out / "figures", "lrf_clearance_distribution", title)
+    crashed = table[table["crashed"]]
+    return {
+        "rows": crashes.html_rows(table, frames.modes),
+        "note": crashes.CRASH_NOTE,
+        "crashed": crashed[["participant", "mode"]].to_dict("records"),
+        "figure": figure,
+    }
+
+
 def _extra(written: _Written, figure, folder: Path, stem: str, title: str) -> dict:
     png, svg, text = written.figure(figure, folder, stem)
     return {"title": title, "svg": Markup(text), "png_name": png.name, "svg_name": svg.name}
@@ -482,6 +511,7 @@ def _render_html(
     extra: list[dict],
     recognition: dict | None,
     section: dict,
+    crash: dict | None = None,
 ) -> str:
     """``templates/report.html.j2`` rendered with the study's values."""
     counted = set(frames.trials["participant"])
@@ -514,6 +544,7 @@ def _render_html(
         extra=extra,
         recognition=None if recognition is None else html_rows(recognition),
         methods=section,
+        crash=crash,
         warnings=all_warnings,
         aborted=frames.aborted.to_dict("records"),
         incomplete=incomplete.to_dict("records"),

@@ -35,6 +35,7 @@ from sim.types import COMPONENT_KINDS, Pose2D
 
 __all__ = [
     "CAMERA_DEFAULTS",
+    "TAIL_CAMERA_DEFAULTS",
     "DEFAULT_LASERS",
     "LASER_DEFAULTS",
     "ROBOT_DEFAULTS",
@@ -94,6 +95,8 @@ CAMERA_DEFAULTS = {
     "height_px": 240,
     "far": 15.0,
 }
+# Sec. 7.5, Fig. 7.42: "the tail camera image displaying the back view of the robot"
+TAIL_CAMERA_DEFAULTS = {**CAMERA_DEFAULTS, "position": [-0.25, 0.0], "yaw_deg": 180.0}
 
 
 # -------------------------------------------------------------------------- loading
@@ -190,6 +193,21 @@ def _laser(r: FieldReader, defaults: dict[str, Any]) -> LaserSpec:
     return spec
 
 
+def _camera(cr: FieldReader, cd: dict) -> CameraSpec:
+    camera = CameraSpec(
+        position=cr.vector("position", 2, cd["position"]),
+        height=cr.number("height", cd["height"], positive=True),
+        pitch=math.radians(cr.number("pitch_deg", cd["pitch_deg"])),
+        fov=math.radians(cr.number("fov_deg", cd["fov_deg"], positive=True)),
+        width=cr.integer("width", cd["width"], minimum=16),
+        height_px=cr.integer("height_px", cd["height_px"], minimum=16),
+        far=cr.number("far", cd["far"], positive=True),
+        yaw=math.radians(cr.number("yaw_deg", cd.get("yaw_deg", 0.0))),
+    )
+    cr.finish()
+    return camera
+
+
 def _robot(r: FieldReader) -> RobotSpec:
     d = ROBOT_DEFAULTS
     lasers = r.tables("lasers")
@@ -200,18 +218,8 @@ def _robot(r: FieldReader) -> RobotSpec:
     names = [s.name for s in laser_specs]
     if len(set(names)) != len(names):
         raise r.fail("lasers", f"names must be unique, got {names}")
-    cr = r.sub("camera")
-    cd = CAMERA_DEFAULTS
-    camera = CameraSpec(
-        position=cr.vector("position", 2, cd["position"]),
-        height=cr.number("height", cd["height"], positive=True),
-        pitch=math.radians(cr.number("pitch_deg", cd["pitch_deg"])),
-        fov=math.radians(cr.number("fov_deg", cd["fov_deg"], positive=True)),
-        width=cr.integer("width", cd["width"], minimum=16),
-        height_px=cr.integer("height_px", cd["height_px"], minimum=16),
-        far=cr.number("far", cd["far"], positive=True),
-    )
-    cr.finish()
+    camera = _camera(r.sub("camera"), CAMERA_DEFAULTS)
+    tail_camera = _camera(r.sub("tail_camera"), TAIL_CAMERA_DEFAULTS)
     spec = RobotSpec(
         length=r.number("length", d["length"], positive=True),
         width=r.number("width", d["width"], positive=True),
@@ -226,6 +234,7 @@ def _robot(r: FieldReader) -> RobotSpec:
         imu_sigma=r.vector("imu_sigma", 2, d["imu_sigma"]),
         lasers=laser_specs,
         camera=camera,
+        tail_camera=tail_camera,
     )
     if min(spec.pose_sigma) < 0 or min(spec.imu_sigma) < 0:
         raise r.fail("pose_sigma", "noise levels must be zero or positive")

@@ -104,6 +104,7 @@ class CameraSpec:
     width: int  # [px]
     height_px: int  # [px]
     far: float  # [m]
+    yaw: float = 0.0  # [rad] in the robot frame; pi looks backwards (the tail camera)
 
 
 @dataclass(frozen=True, slots=True)
@@ -122,7 +123,8 @@ class RobotSpec:
     pose_sigma: tuple[float, float]  # pose-estimate noise ([m], [rad])
     imu_sigma: tuple[float, float]  # IMU noise (yaw rate [rad/s], acceleration [m/s^2])
     lasers: tuple[LaserSpec, ...]
-    camera: CameraSpec
+    camera: CameraSpec  # the front camera
+    tail_camera: CameraSpec  # rear-facing, at the back (thesis Sec. 7.5, Fig. 7.42)
 
     def footprint(self) -> np.ndarray:
         """Footprint corners in the robot frame, counter-clockwise (4, 2) [m]."""

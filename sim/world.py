@@ -446,17 +446,27 @@ class World:
             components=self._components_seen_from(estimate),
         )
 
-    def camera_image(self) -> np.ndarray:
-        """Render the robot's camera (``robot.camera``) from the true pose.
+    def camera_image(self, which: str = "front") -> np.ndarray:
+        """Render one of the robot's cameras from the true pose.
+
+        Parameters
+        ----------
+        which : "front" (``robot.camera``) or "tail" (``robot.tail_camera``, looking back;
+            thesis Sec. 7.5, Fig. 7.42).
 
         Returns
         -------
         (height_px, width, 3) uint8 RGB image, pybullet's ER_TINY_RENDERER, no shadows.
         """
-        cam = self.scenario.robot.camera
+        robot = self.scenario.robot
+        cams = {"front": robot.camera, "tail": robot.tail_camera}
+        if which not in cams:
+            raise ValueError(f"camera_image: which must be one of front, tail, got {which!r}")
+        cam = cams[which]
         pose = self.true_pose()
         eye_xy = pose.to_map_frame(np.array(cam.position))[0]
-        cy, sy = math.cos(pose.yaw), math.sin(pose.yaw)
+        yaw = pose.yaw + cam.yaw
+        cy, sy = math.cos(yaw), math.sin(yaw)
         cp, sp = math.cos(cam.pitch), math.sin(cam.pitch)
         eye = [float(eye_xy[0]), float(eye_xy[1]), cam.height]
         forward = [cy * cp, sy * cp, sp]

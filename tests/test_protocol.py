@@ -105,7 +105,24 @@ def test_reactive_protocol_compares_manual_and_reactive_without_secondary_task()
     assert p.main.end_on_collision and not p.main.inspection
     assert p.main.route == ("A", "B")
     assert {"completion_time_s", "collisions", "clearance_histogram"} <= set(p.analysis.metrics)
-    assert not p.ui.show_map
+    assert not p.ui.show_map and p.ui.layout == "laser"
+
+
+def test_ui_layout_defaults_to_the_map_and_is_validated():
+    text = shipped_text("pilot")
+    assert load_protocol("pilot", known_modes=KNOWN).ui.layout == "map"
+    laser = parse_protocol(
+        text.replace("show_map = true", 'layout = "laser"\nshow_map = false', 1),
+        "p.toml",
+        known_modes=KNOWN,
+    )
+    assert laser.ui.layout == "laser" and not laser.ui.show_map
+    # without show_map the laser layout has no map
+    no_map = text.replace("show_map = true", 'layout = "laser"', 1)
+    assert not parse_protocol(no_map, "p.toml", known_modes=KNOWN).ui.show_map
+    bad = text.replace("show_map = true", 'layout = "rviz"', 1)
+    with pytest.raises(ValueError, match=r"'ui.layout': must be one of map, laser, got 'rviz'"):
+        parse_protocol(bad, "p.toml", known_modes=KNOWN)
 
 
 def test_pilot_protocol_is_short():
@@ -201,6 +218,8 @@ BAD = [
     ('timeouts = "exclude"', 'timeouts = "drop"', "analysis.timeouts"),
     ('"completion_time_s",', '"speed",', "analysis.metrics[0]"),
     ("window = [1280, 720]", "window = [1280]", "ui.window"),
+    ("show_map = true", 'show_map = true\nlayout = "rviz"', "ui.layout"),
+    ("show_map = true", 'show_map = true\nlayout = "laser"', "ui.show_map"),
     ("show_map = true", "show_map = true\n[ui.instructions]\nmian = 'x'", "ui.instructions.mian"),
     ("show_map = true", "show_map = true\n[input.axes]\nvx = 0", "input.axes.vy"),
     ("show_map = true", "show_map = true\n[input]\ndeadzone = 1.0", "input.deadzone"),

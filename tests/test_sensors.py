@@ -385,6 +385,14 @@ def test_camera_sees_the_red_cylinder() -> None:
             (rgb[..., 0] > 100) & (rgb[..., 0] > 2 * rgb[..., 1]) & (rgb[..., 0] > 2 * rgb[..., 2])
         )
         assert red.sum() == 0
+        # the tail camera (Sec. 7.5, Fig. 7.42) looks backwards: now it sees the cylinder
+        rgb = world.camera_image("tail").astype(int)
+        red = (
+            (rgb[..., 0] > 100) & (rgb[..., 0] > 2 * rgb[..., 1]) & (rgb[..., 0] > 2 * rgb[..., 2])
+        )
+        assert red.sum() > 200
+        with pytest.raises(ValueError, match="front, tail"):
+            world.camera_image("side")
 
 
 def test_sensing_at_rest_reuses_the_geometry_and_redraws_the_noise(rng) -> None:

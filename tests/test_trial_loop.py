@@ -244,3 +244,53 @@ def test_the_outcome_stores_the_modes_effective_settings(tmp_path, seed):
     assert settings["d_safe"] == 0.15  # defaults too: the effective settings
     stored = json.loads(stored) if isinstance(stored, str) else stored
     assert stored["mode_settings"] == settings
+
+
+class Forward(ParticipantBase):
+    """Pushes straight ahead at full speed (into whatever is there)."""
+
+    kind = "scripted"
+    parameters: dict = {}
+
+    def begin_trial(self, info) -> None:
+        pass
+
+    def act(self, obs, screen) -> ParticipantInput:
+        return ParticipantInput(u=np.array([1.0, 0.0, 0.0]))
+
+
+def test_a_collision_ends_the_trial_as_a_crash_with_the_lrf_clearance(tmp_path, scene, seed):
+    """Sec. 7.5: end_on_collision ends the trial at the first contact (``crashed``); the
+    outcome carries the laser clearance of Fig. 7.44b and Table 7.10."""
+    from dataclasses import replace
+
+    engine, ids = _database(tmp_path)
+    spec = TrialSpec(
+        phase="main",
+        ordinal=0,
+        attempt=0,
+        mode="manual",
+        seed=seed,
+        instruction="drive",
+        primary=PrimarySettings(route=("dock",), inspection_required=False, timeout_s=60.0),
+        secondary=None,
+        end_on_collision=True,
+    )
+    values = dict(
+        participant_id=ids[0], session_id=ids[1], phase="main", mode="manual", ordinal=0,
+        attempt=0, scenario="practice_course", seed=seed,
+    )  # fmt: skip
+    common = dict(
+        scene=scene, participant=Forward(), trial_values=values, recording_dir=tmp_path,
+        recording_rel=lambda tid: f"rec/trial_{tid}.rrd", session_id=ids[1],
+    )  # fmt: skip
+    crash = run_trial(engine, spec, mode=make_mode("manual"), **common)
+    out = crash.outcome
+    assert out["crashed"] and out["collisions"] == 1 and not out["completed"]
+    lrf = out["lrf_clearance"]
+    assert lrf["samples"] == crash.ticks and lrf["mean_m"] > 0 and lrf["min_m"] <= lrf["mean_m"]
+    values["ordinal"] = 1
+    short = replace(spec.primary, timeout_s=2.0)
+    still = replace(spec, ordinal=1, end_on_collision=False, primary=short)
+    on = run_trial(engine, still, mode=None, **common)
+    assert on.outcome["crashed"] is False

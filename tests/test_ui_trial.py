@@ -239,6 +239,55 @@ def test_snapshot_shows_camera_map_with_laser_dots_and_question(tmp_path, person
     assert "12 + 5 = 18 ?" in screen.texts_seen
 
 
+def test_laser_layout_shows_scan_stick_arrow_and_both_cameras(tmp_path):
+    """Sec. 7.5, Fig. 7.42: the robot-centred scan with the robot and the stick arrow on the
+    left, the front camera top right, the tail camera bottom right, no map."""
+    from study.ui import laser_view
+
+    ui = load_protocol("reactive-7-5").ui
+    assert ui.layout == "laser"
+    person = HumanParticipant(
+        ui,
+        load_protocol("pilot").input,
+        driver=KeyDriver((pygame.K_w,)),
+        camera=CameraFeed(inline=True, inline_every=1),
+        snapshots=tmp_path,
+    )
+    scenario = load_scenario("cluttered_room")
+    world = World(scenario, seed=0)
+    try:
+        person.attach(world, lambda t, kind, **detail: None)
+        person.begin_trial(TrialInfo("main", scenario, ("dock",), True, False, 600.0))
+        obs = world.reset(seed=1)
+        person.act(obs, ScreenState(phase="main", instruction="Drive to the goal.", t=0.0))
+        path = person.snapshot("laser")
+    finally:
+        world.close()
+        person.close()
+    image = pygame.surfarray.array3d(pygame.image.load(str(path))).astype(int)  # (w, h, 3)
+    screen = person.screen
+    assert screen.map_rect.width == 0 and not screen.show_map
+
+    def region(rect: pygame.Rect) -> np.ndarray:
+        return image[rect.left : rect.right, rect.top : rect.bottom].reshape(-1, 3)
+
+    def near(pixels: np.ndarray, colour: tuple[int, int, int]) -> int:
+        return int(np.all(np.abs(pixels - colour) <= 10, axis=1).sum())
+
+    scan = region(screen.laser_rect)
+    assert near(scan, laser_view.LASER) > 20  # the hits of both lasers
+    assert near(scan, laser_view.ROBOT) > 100  # the robot model
+    assert near(scan, laser_view.ARROW) > 30  # W pressed: the stick arrow
+    front, tail = region(screen.camera_rect), region(screen.tail_rect)
+    for cam in (front, tail):
+        blank = np.all(cam == PANEL, axis=1) | np.all(cam == BACKGROUND, axis=1)
+        assert blank.mean() < 0.5  # a rendered image, not the "camera starting" panel
+    assert screen.laser_rect.right <= screen.camera_rect.left
+    assert screen.camera_rect.bottom <= screen.tail_rect.top
+    # the back view is not the front view
+    assert not np.array_equal(front, tail)
+
+
 def test_no_mode_name_is_ever_drawn(tmp_path, person_factory, protocol):
     driver = EventDriver(
         Constant(np.array([0.2, 0.0, 0.1])), GamepadMapping.from_settings(protocol.input)

@@ -64,6 +64,8 @@ class AnalysisConfig:
     modes : the protocol's mode names in its order ([modes] names).
     timeouts : what a timed-out main trial's completion time and score are
         ([analysis] timeouts): "exclude" (missing) or "censor" (the time limit).
+    end_on_collision : a collision ends a main trial (a main phase's ``end_on_collision``,
+        the Sec. 7.5 kind of study: its crashes and Table 7.10 are reported).
     """
 
     alpha: float = 0.05
@@ -74,6 +76,7 @@ class AnalysisConfig:
     collision_penalty_s: float = 60.0
     modes: tuple[str, ...] = ()
     timeouts: str = "exclude"
+    end_on_collision: bool = False
 
 
 @dataclass(frozen=True, slots=True)
@@ -121,6 +124,10 @@ def read_config(protocol_text: str, *, source: str = "protocol") -> AnalysisConf
         collision_penalty_s=float(scoring.get("collision_penalty_s", 60.0)),
         modes=tuple(str(m) for m in modes),
         timeouts=timeouts,
+        end_on_collision=any(
+            isinstance(ph, dict) and ph.get("kind") == "main" and ph.get("end_on_collision") is True
+            for ph in doc.get("phases", []) or []
+        ),
     )
 
 

@@ -30,6 +30,7 @@ from study.engine.events import EventSink, TrialWriter, jsonable
 from study.engine.recognition import RecognitionTally
 from study.participants.base import Participant
 from study.types import ParticipantInput, ScreenState, TickRecord, TrialInfo
+from tasks.clearance import RangeStats, lrf_range
 from tasks.geometry import footprint_clearance
 from tasks.primary import PrimarySettings, PrimaryTask
 from tasks.secondary import SecondarySettings, SecondaryTask, summarise
@@ -176,6 +177,8 @@ class TrialLoop:
         self.rec_path = recording_dir / self.writer.recording_path
         self.trial_key = f"{trial_values['phase']}/{self.trial_id}"
         self.footprint = scenario.robot.footprint()
+        self.lrf = RangeStats()  # Sec. 7.5's clearance, the laser's range from the centre
+        self.crashed = False  # a collision ended the trial (end_on_collision)
         hz = spec.camera_hz
         self.camera_every = max(1, round(1.0 / (DT * hz))) if hz > 0 else 0
         self.sec_events: list[Any] = []  # SecondaryEvent, for the outcome's summary
@@ -316,6 +319,7 @@ class TrialLoop:
         pose, velocity = world.true_pose(), world.true_velocity()
         obs = self.obs = world.sense()
         clearance = footprint_clearance(obs.points, self.footprint)
+        self.lrf.add(lrf_range(obs.points))
         in_region = bool(point_in_region(self.scene.scenario, pose.x, pose.y))
         done = self._task_events(started, pose, velocity, clearance, in_region)
         task, target = self.participant.intention()
@@ -380,8 +384,8 @@ class TrialLoop:
                 sink.secondary(ev)
                 if spec.baseline and ev.kind == "block_finished":
                     done = True
-        if spec.end_on_collision and started:
-            done = True
+        if spec.end_on_collision and started and not done:
+            done = self.crashed = True  # Sec. 7.5: "the crash of the quadrotor"
         if t >= self.time_limit + 1.0:  # a safety net; PrimaryTask times out first
             done = True
         return done
@@ -434,6 +438,9 @@ class TrialLoop:
                 clearance_mean_m=_finite(po.clearance_mean_m),
                 clearance_min_m=_finite(po.clearance_min_m),
             )
+            # Sec. 7.5's clearance (Fig. 7.44b, Table 7.10) and whether a collision ended it
+            outcome["lrf_clearance"] = self.lrf.summary()
+            outcome["crashed"] = self.crashed
             if self.max_collisions is not None:
                 outcome["passed"] = bool(po.completed and po.collisions <= self.max_collisions)
         if self.mode_settings is not None:

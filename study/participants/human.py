@@ -131,9 +131,13 @@ class HumanParticipant(ParticipantBase):
         self.status = status
         self.status_every_s = status_every_s
         self.fps = fps
-        self.screen = Screen(ui.window, fullscreen=ui.fullscreen, show_map=ui.show_map)
+        self.screen = Screen(
+            ui.window, fullscreen=ui.fullscreen, show_map=ui.show_map, layout=ui.layout
+        )
         pygame.joystick.init()
+        # the tail camera is rendered only for the screen that shows it (Sec. 7.5)
         self.camera = camera if camera is not None else CameraFeed()
+        self.camera.tail = ui.layout == "laser"
         self.world: Any = None
         self._event: Callable[..., None] | None = None
         self._grids: dict[str, OccupancyGrid] = {}
@@ -356,6 +360,7 @@ class HumanParticipant(ParticipantBase):
             pose=obs.pose,
             points=obs.pose.to_map_frame(obs.points) if len(obs.points) else np.empty((0, 2)),
             stick=self.input.stick() if drive else _ZERO3,
+            scan=obs.points,
         )
         self._frame(pump=False)
         if t >= self._next_shot:
@@ -388,6 +393,8 @@ class HumanParticipant(ParticipantBase):
                 points=view.points,
                 stick=self.input.stick() if drive else _ZERO3,
                 camera=self.camera.image,
+                tail_camera=self.camera.tail_image,
+                scan=view.scan,
                 confirmation=confirmation,
                 overlay=overlay,
             ),

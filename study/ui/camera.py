@@ -14,6 +14,8 @@ runs as fast as the worker renders (about 20 fps on a free core) and always show
 pose. The worker runs at a lower priority (``nice`` 10) so that on a busy machine the
 control loop and the screen are served first. The control loop only pays a non-blocking
 ``poll`` and a pipe write (well under 1 ms).
+With ``tail=True`` (the ``layout = "laser"`` screen, thesis Sec. 7.5) each request renders
+the front and the tail camera at the same pose; other screens never render the tail camera.
 ``inline=True`` renders in the calling process instead, at most every ``inline_every``
 calls of :meth:`CameraFeed.update` (tests); a worker that dies falls back to that.
 """
@@ -29,8 +31,14 @@ from sim.scenario import Scenario
 from sim.types import Pose2D
 
 
+def _render(world: Any, tail: bool) -> tuple[np.ndarray, np.ndarray | None]:
+    """The front image and, with ``tail``, the tail camera's, at the world's pose."""
+    return world.camera_image("front"), world.camera_image("tail") if tail else None
+
+
 def _serve(conn: Any) -> None:
-    """Worker process: ``("scenario", Scenario)``, ``("render", x, y, yaw)``, ``("stop",)``."""
+    """Worker process: ``("scenario", Scenario)``, ``("render", x, y, yaw, tail)``,
+    ``("stop",)``; answers a render with ``(front, tail)`` as (shape, bytes) or None."""
     import os
 
     from sim.world import World
@@ -52,8 +60,8 @@ def _serve(conn: Any) -> None:
                 world = worlds[key]
             elif msg[0] == "render" and world is not None:
                 world.reset(Pose2D(msg[1], msg[2], msg[3]))
-                image = world.camera_image()
-                conn.send((image.shape, image.tobytes()))
+                images = _render(world, bool(msg[4]))
+                conn.send(tuple(None if i is None else (i.shape, i.tobytes()) for i in images))
     except (EOFError, KeyboardInterrupt, BrokenPipeError):
         pass
     finally:
@@ -70,12 +78,16 @@ class CameraFeed:
         Render in this process (blocking, ~50 ms a frame) instead of a worker process.
     inline_every : int
         With ``inline``: render on every n-th :meth:`update`.
+    tail : bool
+        Render the tail camera too (``tail_image``).
     """
 
-    def __init__(self, *, inline: bool = False, inline_every: int = 10) -> None:
+    def __init__(self, *, inline: bool = False, inline_every: int = 10, tail: bool = False) -> None:
         self.inline = inline
         self.inline_every = max(1, int(inline_every))
+        self.tail = tail
         self.image: np.ndarray | None = None  # (h, w, 3) uint8, newest
+        self.tail_image: np.ndarray | None = None  # (h, w, 3) uint8, newest back view
         self.frames = 0  # images received
         self._scenario_key = ""
         self._busy = False
@@ -96,7 +108,7 @@ class CameraFeed:
         scenario: Scenario = world.scenario
         key = scenario.source or scenario.name
         if key != self._scenario_key:
-            self.image = None
+            self.image = self.tail_image = None
             self._scenario_key = key
             if self._conn is not None:
                 self._drain(block=True)
@@ -108,7 +120,7 @@ class CameraFeed:
             return
         if self.inline:
             if self._calls % self.inline_every == 0:
-                self.image = self._world.camera_image()
+                self.image, self.tail_image = _render(self._world, self.tail)
                 self.frames += 1
             self._calls += 1
             return
@@ -116,7 +128,9 @@ class CameraFeed:
         if not self._busy and self._conn is not None:
             pose = self._world.true_pose()
             try:
-                self._conn.send(("render", float(pose.x), float(pose.y), float(pose.yaw)))
+                self._conn.send(
+                    ("render", float(pose.x), float(pose.y), float(pose.yaw), self.tail)
+                )
                 self._busy = True
             except OSError:  # the worker died: render here from now on
                 self._conn, self.inline = None, True
@@ -127,13 +141,15 @@ class CameraFeed:
         try:
             if not (block or self._conn.poll()):
                 return
-            shape, data = self._conn.recv()
+            front, tail = self._conn.recv()
         except (EOFError, OSError):  # the worker died: render here from now on
             self._busy = False
             self._conn = None
             self.inline = True
             return
-        self.image = np.frombuffer(data, dtype=np.uint8).reshape(shape)
+        self.image = np.frombuffer(front[1], dtype=np.uint8).reshape(front[0])
+        if tail is not None:
+            self.tail_image = np.frombuffer(tail[1], dtype=np.uint8).reshape(tail[0])
         self.frames += 1
         self._busy = False
 

@@ -9,6 +9,9 @@ Layout (fractions of the window, which comes from the protocol's ``[ui] window``
 - middle: the camera image on the left half, the occupancy map of the whole scene on the
   right half (``show_map = false``: the camera alone, centred), each scaled to fit with its
   aspect ratio kept;
+- ``layout = "laser"`` (thesis Sec. 7.5, Fig. 7.42) instead: the robot-centred laser scan
+  with the robot model and the stick arrow on the left (:mod:`study.ui.laser_view`), the
+  front camera top right and the tail camera (the back view) bottom right; no map;
 - bottom, 22 %: the secondary-task window, the question with its shown answer and the
   Yes / No buttons named after the gamepad buttons and keys, and for one second after an
   answer the confirmation "Answer recorded: Yes" (never whether it was right).
@@ -37,6 +40,7 @@ from sim.occupancy import OccupancyGrid
 from sim.scenario import Scenario
 from sim.types import Pose2D
 from study.types import ScreenState
+from study.ui.laser_view import draw_laser_view
 
 BACKGROUND = (32, 34, 40)
 PANEL = (48, 52, 60)
@@ -63,6 +67,8 @@ class TrialView:
     points: np.ndarray = field(default_factory=lambda: np.empty((0, 2)))  # (k, 2) [m] map
     stick: np.ndarray = field(default_factory=lambda: np.zeros(3))  # (3,) deflection [-1, 1]
     camera: np.ndarray | None = None  # (h, w, 3) uint8
+    tail_camera: np.ndarray | None = None  # (h, w, 3) uint8, the back view (laser layout)
+    scan: np.ndarray = field(default_factory=lambda: np.empty((0, 2)))  # (k, 2) [m] robot
     confirmation: str = ""  # shown under the question
     overlay: str = ""  # a message over everything (device lost, paused)
     yes_label: str = "Yes  (A / Y)"
@@ -80,18 +86,28 @@ class Screen:
         Open fullscreen (the size is then the display's).
     show_map : bool
         Draw the map panel.
+    layout : str
+        "map" (camera and map) or "laser" (laser scan, front and tail cameras; no map).
     """
 
     def __init__(
-        self, size: tuple[int, int], *, fullscreen: bool = False, show_map: bool = True
+        self,
+        size: tuple[int, int],
+        *,
+        fullscreen: bool = False,
+        show_map: bool = True,
+        layout: str = "map",
     ) -> None:
+        if layout not in ("map", "laser"):
+            raise ValueError(f"Screen: layout must be one of map, laser, got {layout!r}")
         pygame.display.init()
         pygame.font.init()
         flags = pygame.FULLSCREEN if fullscreen else 0
         self.surface = pygame.display.set_mode((0, 0) if fullscreen else size, flags)
         pygame.display.set_caption("Robot study")
         self.width, self.height = self.surface.get_size()
-        self.show_map = show_map
+        self.layout = layout
+        self.show_map = show_map and layout == "map"
         h = self.height
         self.fonts = {
             "small": pygame.font.Font(None, max(18, h // 30)),
@@ -100,7 +116,8 @@ class Screen:
         }
         self.texts_seen: set[str] = set()
         self._text_cache: dict[tuple[str, str, tuple[int, int, int]], pygame.Surface] = {}
-        self._camera: tuple[int, pygame.Surface | None] = (0, None)  # id of the image, scaled
+        # id of the image and its scaled surface, per panel
+        self._scaled: dict[str, tuple[int, pygame.Surface | None]] = {}
         self.frames = 0
         self.frame_times: list[float] = []  # perf_counter of every flip
         self._layout()
@@ -115,7 +132,16 @@ class Screen:
         middle = pygame.Rect(0, top, w, h - top - bottom)
         self.status_rect = pygame.Rect(0, 0, w, top)
         self.question_rect = pygame.Rect(0, h - bottom, w, bottom)
-        if self.show_map:
+        self.laser_rect = self.tail_rect = pygame.Rect(0, 0, 0, 0)
+        if self.layout == "laser":
+            split, half = int(w * 0.55), middle.height // 2
+            self.laser_rect = pygame.Rect(0, middle.top, split, middle.height).inflate(-12, -12)
+            self.camera_rect = pygame.Rect(split, middle.top, w - split, half).inflate(-12, -12)
+            self.tail_rect = pygame.Rect(
+                split, middle.top + half, w - split, middle.height - half
+            ).inflate(-12, -12)
+            self.map_rect = pygame.Rect(0, 0, 0, 0)
+        elif self.show_map:
             self.camera_rect = pygame.Rect(0, middle.top, w // 2, middle.height).inflate(-12, -12)
             self.map_rect = pygame.Rect(w // 2, middle.top, w - w // 2, middle.height).inflate(
                 -12, -12
@@ -266,13 +292,12 @@ class Screen:
             anchor="topright",
             colour=DIM,
         )
-        # camera
-        if view.camera is not None:
-            cam = self._camera_surface(view.camera)
-            s.blit(cam, cam.get_rect(center=self.camera_rect.center))
-        else:
-            pygame.draw.rect(s, PANEL, self.camera_rect)
-            self.text("Camera starting ...", self.camera_rect.center, anchor="center", colour=DIM)
+        self._camera_panel("front", view.camera, self.camera_rect)
+        if self.layout == "laser":
+            self._camera_panel("tail", view.tail_camera, self.tail_rect)
+            draw_laser_view(
+                s, self.laser_rect, points=view.scan, footprint=footprint, stick=view.stick
+            )
         # map
         if self.show_map and self._map is not None:
             s.blit(self._map, self._map_pos)
@@ -296,15 +321,24 @@ class Screen:
             self.paragraph(view.overlay, box.inflate(-40, -40), font="large")
         self.flip()
 
-    def _camera_surface(self, image: np.ndarray) -> pygame.Surface:
-        """``image`` (h, w, 3) scaled to the camera panel, converted once per new image."""
-        key, surf = self._camera
+    def _camera_panel(self, name: str, image: np.ndarray | None, rect: pygame.Rect) -> None:
+        """A camera image centred in ``rect``, or a placeholder before the first image."""
+        if image is None:
+            pygame.draw.rect(self.surface, PANEL, rect)
+            self.text("Camera starting ...", rect.center, anchor="center", colour=DIM)
+            return
+        cam = self._camera_surface(name, image, rect)
+        self.surface.blit(cam, cam.get_rect(center=rect.center))
+
+    def _camera_surface(self, name: str, image: np.ndarray, rect: pygame.Rect) -> pygame.Surface:
+        """``image`` (h, w, 3) scaled to ``rect``, converted once per new image."""
+        key, surf = self._scaled.get(name, (0, None))
         if key != id(image) or surf is None:
             cam = pygame.surfarray.make_surface(np.ascontiguousarray(image.swapaxes(0, 1)))
             h, w = image.shape[:2]
-            scale = min(self.camera_rect.width / w, self.camera_rect.height / h)
+            scale = min(rect.width / w, rect.height / h)
             surf = pygame.transform.scale(cam, (int(w * scale), int(h * scale)))
-            self._camera = (id(image), surf)
+            self._scaled[name] = (id(image), surf)
         return surf
 
     def _robot(self, pose: Pose2D, footprint: np.ndarray, stick: np.ndarray) -> None:

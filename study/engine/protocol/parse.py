@@ -7,7 +7,7 @@ Tables and fields (every one optional unless marked; unknown keys are refused):
 required, with its scenario; ``[phases.after_trial]`` instrument, weights);
 ``[secondary]`` p_correct, timeout_s, gap_s, near_miss_offsets, p_addition;
 ``[scoring]`` collision_penalty_s; ``[analysis]`` alpha, gate, posthoc, metrics,
-secondary_baseline_level; ``[ui]`` window, fullscreen, show_map, ``[ui.instructions]``;
+secondary_baseline_level; ``[ui]`` window, fullscreen, show_map, layout, ``[ui.instructions]``;
 ``[input]`` deadzone, ``[input.axes]``, ``[input.buttons]``, invert.
 The shipped files in ``protocols/`` show every table.
 """
@@ -45,6 +45,7 @@ from study.engine.protocol.types import (
     ROUTE_POINTS,
     TIMEOUTS,
     TLX_WEIGHTS,
+    UI_LAYOUTS,
     AfterTrial,
     AnalysisSettings,
     Baseline,
@@ -345,11 +346,16 @@ def _ui(r: FieldReader) -> UiSettings:
         if kind in ir.data:
             texts[kind] = _text(ir, kind)
     ir.finish()
+    layout = r.string("layout", "map", allowed=UI_LAYOUTS)
+    show_map = _boolean(r, "show_map", layout == "map")
+    if layout == "laser" and show_map:
+        raise r.fail("show_map", 'must be false with layout = "laser" (that screen has no map)')
     u = UiSettings(
         window=(int(window[0]), int(window[1])),
         fullscreen=_boolean(r, "fullscreen", False),
-        show_map=_boolean(r, "show_map", True),
+        show_map=show_map,
         instructions=texts,
+        layout=layout,
     )
     r.finish()
     return u

@@ -22,6 +22,9 @@ PHASE_KINDS: tuple[str, ...] = (
     "debrief",
 )
 ROUTE_POINTS: tuple[str, ...] = ("A", "B")
+# the driving screen: "map" camera + scene map (Sec. 7.6.1, Fig. 7.47); "laser" the
+# robot-centred laser scan with the front and tail cameras, no map (Sec. 7.5, Fig. 7.42)
+UI_LAYOUTS: tuple[str, ...] = ("map", "laser")
 POSTHOC: tuple[str, ...] = ("lsd_paired", "lsd_pooled")
 # analysis.stats.GATES, repeated so that loading a protocol does not import scipy and pandas
 # (about 1.5 s); tests/test_protocol.py checks that the two agree.
@@ -185,6 +188,7 @@ class UiSettings:
     fullscreen: bool
     show_map: bool  # the complete map of the scene (thesis 7.6: yes; 7.5: no)
     instructions: Mapping[str, str]  # phase kind -> text shown before it
+    layout: str = "map"  # UI_LAYOUTS
 
 
 @dataclass(frozen=True, slots=True)
