@@ -16,15 +16,9 @@ Layout (fractions of the window, which comes from the protocol's ``[ui] window``
   Yes / No buttons named after the gamepad buttons and keys, and for one second after an
   answer the confirmation "Answer recorded: Yes" (never whether it was right).
 
-On the map the robot's footprint and heading are drawn at its *estimated* pose (what the
-robot's localisation believes), the laser hits as red dots (also from the estimated pose,
-as the robot would draw them) and the current stick input as a green arrow from the robot's
-centre (translation; a short arc at its tip for rotation). A and B are marked. Colours:
-free space white, occupied cells dark grey, the question region pale yellow.
-
-Every string drawn goes through :meth:`Screen.text`, which remembers it in
-``texts_seen`` so a test can check that the mode's name is never on screen. Fonts are
-pygame's default (FreeSans) sized from the window height (about 25 px at 720 px).
+The map and laser drawing conventions are in docs/decisions.md (study/ui); every
+string drawn goes through :meth:`Screen.text`, which remembers it in ``texts_seen`` so a
+test can check that the mode's name is never on screen.
 """
 
 from __future__ import annotations
