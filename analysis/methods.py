@@ -27,11 +27,13 @@ class Deviation:
     topic : short name ("Simulation", "Contextual mode: candidates", ...).
     modes : the modes it concerns (empty: every study).
     text : the sentence for a methods section, with the reason and the thesis section.
+    protocols : the protocols (their ``[study] name``) it concerns (empty: any).
     """
 
     topic: str
     modes: tuple[str, ...]
     text: str
+    protocols: tuple[str, ...] = ()
 
 
 DEVIATIONS: tuple[Deviation, ...] = (
@@ -80,6 +82,25 @@ DEVIATIONS: tuple[Deviation, ...] = (
         "obstacle avoidance: the dynamic window's command, or stop when none is admissible), "
         "as Sec. 3.2.1.1 describes; the blend of Eq. 3.2 with beta = the maximum posterior "
         '(Eq. 3.11), which the thesis also states, is the setting arbitration = "blend".',
+    ),
+    Deviation(
+        "Sec. 7.5 robot and scene",
+        (),
+        "The thesis's Sec. 7.5 study flew a simulated quadrotor of radius 0.39 m through an "
+        "office; here the platform's holonomic ground robot (0.6 m x 0.5 m) drives the study "
+        "scene's path through narrow doorways, gaps and a corridor. The screen is the "
+        "thesis's Fig. 7.42: the robot-centred laser scan with the stick arrow, the front "
+        "and the tail camera, no map.",
+        ("reactive-7-5",),
+    ),
+    Deviation(
+        "Sec. 7.5 clearance and crashes",
+        (),
+        "Clearance is the minimum distance from the robot's centre to the laser hits of both "
+        "scanners, as a 360-degree scanner at the centre would read it (Table 7.10 reports "
+        "\u201cdistances ... recorded by the LRF\u201d); a collision ends the trial as a crash, "
+        "whose clearance Table 7.10 gives as zero and whose samples Fig. 7.44(b) leaves out.",
+        ("reactive-7-5",),
     ),
     Deviation(
         "Contextual mode: candidates",
@@ -277,7 +298,7 @@ def methods(data: StudyData, frames: Frames) -> dict[str, Any]:
     dict
         ``paragraphs``: list of {"title", "text"} (platform, design, procedure, modes,
         analysis); ``deviations``: list of {"topic", "text"}, those of :data:`DEVIATIONS`
-        that concern every study or one of its modes.
+        that concern one of the study's modes (or every mode) and its protocol (or any).
     """
     protocol = _protocol(data)
     paragraphs = [
@@ -288,7 +309,12 @@ def methods(data: StudyData, frames: Frames) -> dict[str, Any]:
         ("Analysis", _analysis(data)),
     ]
     modes = set(frames.modes)
-    deviations = [d for d in DEVIATIONS if not d.modes or modes & set(d.modes)]
+    name = (protocol.get("study") or {}).get("name", "")
+    deviations = [
+        d
+        for d in DEVIATIONS
+        if (not d.modes or modes & set(d.modes)) and (not d.protocols or name in d.protocols)
+    ]
     return {
         "paragraphs": [{"title": t, "text": x} for t, x in paragraphs],
         "deviations": [{"topic": d.topic, "text": d.text} for d in deviations],
