@@ -522,7 +522,7 @@ def _render_html(
     incomplete = frames.participants[
         (frames.participants["main_trials"] > 0) & ~frames.participants["complete"]
     ]
-    timeouts = frames.trials[frames.trials["completed_task"].eq(False)]
+    timeouts = frames.trials[frames.trials["timed_out"]]
     env = jinja2.Environment(
         loader=jinja2.FileSystemLoader(Path(__file__).parent / "templates"),
         autoescape=jinja2.select_autoescape(["html", "j2"]),

@@ -186,7 +186,7 @@ def tidy(data: StudyData) -> Frames:
     aborted = _aborted(main, counted)
     modes = _mode_levels(data.config, list(dict.fromkeys(counted["mode"])))
     frame = _trial_frame(counted, data.config.collision_penalty_s)
-    frame, timeout_notes = _with_timeouts(frame, data.config.timeouts)
+    frame, timeout_notes = _with_timeouts(frame, counted, data.config)
     frame, recognition, warnings = _with_sample_metrics(frame, counted, t["sample"], data.source)
     warnings = timeout_notes + warnings
     level_of = _levels_of_trials(trials, frame)
@@ -280,27 +280,57 @@ def _trial_frame(counted: pd.DataFrame, collision_penalty_s: float) -> pd.DataFr
 TIMED_METRICS: tuple[str, ...] = ("completion_time_s", "score_s")
 
 
-def _with_timeouts(frame: pd.DataFrame, policy: str) -> tuple[pd.DataFrame, list[str]]:
-    """Mark the trials that timed out (``timed_out``) and treat their completion time and
-    score as ``policy`` says ([analysis] timeouts): missing (``"exclude"``; the
-    repeated-measures tests then drop the participant listwise) or the time limit kept as
-    a right-censored value (``"censor"``, ``censored`` True); the note for the report."""
-    timed_out = frame["completed_task"].eq(False)
-    frame = frame.assign(timed_out=timed_out, censored=timed_out & (policy == "censor"))
-    if not timed_out.any():
-        return frame, []
-    per_mode = frame.loc[timed_out, "mode"].value_counts(sort=False)
-    counts = ", ".join(f"{mode} {n}" for mode, n in per_mode.items())
-    if policy == "exclude":
-        frame.loc[timed_out, list(TIMED_METRICS)] = np.nan
-        what = "their completion time and score are excluded as missing"
-    else:
-        what = "their completion time and score are the time limit, a censored lower bound"
-    note = (
-        f"{int(timed_out.sum())} main trial(s) timed out without finishing the route "
-        f'({counts}): {what} ([analysis] timeouts = "{policy}")'
+def _crashed(counted: pd.DataFrame, end_on_collision: bool) -> pd.Series:
+    """Whether a collision ended each counted trial: the outcome's ``crashed`` flag, or
+    for databases written before it, a collision in a protocol that ends trials on one."""
+    out = []
+    for outcome, collisions in zip(counted["outcome"], counted["collisions"], strict=True):
+        o = outcome if isinstance(outcome, dict) else {}
+        hit = bool(collisions == collisions and collisions > 0)  # NaN: no collision stored
+        out.append(bool(o["crashed"]) if "crashed" in o else end_on_collision and hit)
+    return pd.Series(out, dtype=bool)
+
+
+def _with_timeouts(
+    frame: pd.DataFrame, counted: pd.DataFrame, config: AnalysisConfig
+) -> tuple[pd.DataFrame, list[str]]:
+    """Mark the trials that ended without finishing the route: ``crashed`` (a collision
+    ended it, Sec. 7.5) or ``timed_out`` (the time limit). A crashed trial's completion
+    time and score are missing (Fig. 7.44a averages successful tests only); a timed-out
+    trial's are as ``config.timeouts`` says ([analysis] timeouts): missing (``"exclude"``;
+    the repeated-measures tests then drop the participant listwise) or the time limit kept
+    as a right-censored value (``"censor"``, ``censored`` True). The notes for the report."""
+    unfinished = frame["completed_task"].eq(False).to_numpy()
+    crashed = unfinished & _crashed(counted, config.end_on_collision).to_numpy()
+    timed_out = unfinished & ~crashed
+    policy = config.timeouts
+    frame = frame.assign(
+        crashed=crashed, timed_out=timed_out, censored=timed_out & (policy == "censor")
     )
-    return frame, [note]
+    notes = []
+    if crashed.any():
+        frame.loc[crashed, list(TIMED_METRICS)] = np.nan
+        notes.append(
+            f"{int(crashed.sum())} main trial(s) ended in a crash ({_per_mode(frame, crashed)}):"
+            " their completion time and score are missing (thesis Sec. 7.5: successful tests"
+            " only)"
+        )
+    if timed_out.any():
+        if policy == "exclude":
+            frame.loc[timed_out, list(TIMED_METRICS)] = np.nan
+            what = "their completion time and score are excluded as missing"
+        else:
+            what = "their completion time and score are the time limit, a censored lower bound"
+        notes.append(
+            f"{int(timed_out.sum())} main trial(s) timed out without finishing the route "
+            f'({_per_mode(frame, timed_out)}): {what} ([analysis] timeouts = "{policy}")'
+        )
+    return frame, notes
+
+
+def _per_mode(frame: pd.DataFrame, mask: np.ndarray) -> str:
+    per_mode = frame.loc[mask, "mode"].value_counts(sort=False)
+    return ", ".join(f"{mode} {n}" for mode, n in per_mode.items())
 
 
 def _with_sample_metrics(
