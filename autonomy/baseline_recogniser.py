@@ -57,27 +57,47 @@ class ExponentialSettings:
 
     form: str = "psi"  # "psi": Eq. (7.5); "theta": Eq. (7.4)
     scales: Mapping[str, ExponentialScales] = field(default_factory=dict)
-    threshold: float = 0.5  # c below this: null decision
+    threshold: float | None = None  # c below this: null; None: DEFAULT_THRESHOLD[form]
     combine: str = "product"  # "product" as Eqs. (7.4)/(7.5), or "sum" for comparison
 
 
 # Sec. 7.2.1.3: "the scaling factor k_alpha ... 0.05 for the doorway crossing task, and 0.3
-# for the object inspection task, while k_beta is set to 2.0 and 0.2 respectively".
+# for the object inspection task, while k_beta is set to 2.0 and 0.2 respectively" (tuned
+# on the thesis's simulated quadrotor data; for reference, not the default).
 THESIS_74_SCALES = {
     "doorway_crossing": ExponentialScales(k_alpha=0.05, k_beta=2.0),
     "object_inspection": ExponentialScales(k_alpha=0.3, k_beta=0.2),
 }
+# Defaults for direct use: tune_exponential on the shipped model's demonstrations (all 48
+# runs; docs/results.md). k_alpha [1/m] per form and task type, k_beta = 1; task types
+# not listed get k_alpha = 1.
+DEFAULT_K_ALPHA = {
+    "psi": {
+        "doorway_crossing": 0.001,
+        "object_bypass": 0.5,
+        "object_inspection": 0.2,
+        "wall_following": 1.0,
+    },
+    "theta": {
+        "doorway_crossing": 0.001,
+        "object_bypass": 0.05,
+        "object_inspection": 1.0,
+        "wall_following": 0.5,
+    },
+}
+DEFAULT_THRESHOLD = {"psi": 0.4, "theta": 0.7}
 
 
 def default_scales(kinds: Mapping[str, str], form: str = "psi") -> dict[str, ExponentialScales]:
-    """Default scales per task type: ``psi_ref = pi/2`` for wall kinds, else 0; with
-    ``form="theta"`` the thesis's Sec. 7.2.1.3 values where it gives them, else 1."""
-    out = {}
-    for task, kind in kinds.items():
-        base = THESIS_74_SCALES.get(task, ExponentialScales()) if form == "theta" else None
-        base = ExponentialScales() if base is None else base
-        out[task] = replace(base, psi_ref=np.pi / 2 if kind == "wall" else 0.0)
-    return out
+    """Default scales per task type (:data:`DEFAULT_K_ALPHA`), ``psi_ref = pi/2`` for
+    wall kinds, else 0."""
+    table = DEFAULT_K_ALPHA.get(form, {})
+    return {
+        task: ExponentialScales(
+            k_alpha=table.get(task, 1.0), psi_ref=np.pi / 2 if kind == "wall" else 0.0
+        )
+        for task, kind in kinds.items()
+    }
 
 
 def alpha_beta(
@@ -159,7 +179,7 @@ def check_settings(settings: ExponentialSettings, kinds: Mapping[str, str]) -> N
         raise ValueError(
             f"ExponentialSettings: combine must be one of {COMBINES}, got {settings.combine!r}"
         )
-    if not 0.0 <= settings.threshold <= 1.0:
+    if settings.threshold is not None and not 0.0 <= settings.threshold <= 1.0:
         raise ValueError(
             f"ExponentialSettings: threshold must lie in [0, 1], got {settings.threshold}"
         )
@@ -177,6 +197,13 @@ class ExponentialBaseline:
         Task type -> component kind it targets.
     settings : ExponentialSettings or None
         Form, scales (missing task types get :func:`default_scales`), threshold.
+
+    Attributes
+    ----------
+    scales_ : dict of str to ExponentialScales
+        The scales in use per task type.
+    threshold_ : float
+        The null threshold in use.
     """
 
     def __init__(self, kinds: Mapping[str, str], *, settings: ExponentialSettings | None = None):
@@ -185,6 +212,8 @@ class ExponentialBaseline:
         self.kinds = dict(kinds)
         self.settings = settings
         self.scales_ = {**default_scales(kinds, settings.form), **dict(settings.scales)}
+        t = settings.threshold
+        self.threshold_ = DEFAULT_THRESHOLD[settings.form] if t is None else t
 
     def reset(self) -> None:
         """Nothing to forget: the baseline is reactive."""
@@ -218,7 +247,7 @@ class ExponentialBaseline:
                 c[sel] = baseline_confidence(a, b, sc, combine=self.settings.combine)
         best = int(np.argmax(c))
         conf = float(c[best])
-        task, target = states[best] if conf >= self.settings.threshold else (None, None)
+        task, target = states[best] if conf >= self.threshold_ else (None, None)
         return RecognitionStep(task, target, conf, tuple(states), c)
 
 

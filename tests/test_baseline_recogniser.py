@@ -63,8 +63,11 @@ def test_alpha_beta_ranges(d: float, psi: float, u_angle: float, tangent: bool) 
         assert b[0] == pytest.approx(abs(abs(psi) - np.pi / 2), abs=1e-9)
 
 
+UNIT = {t: ExponentialScales(psi_ref=np.pi / 2 if k == "wall" else 0.0) for t, k in KINDS.items()}
+
+
 def test_decision_null_and_forms() -> None:
-    base = ExponentialBaseline(KINDS, settings=ExponentialSettings(threshold=0.3))
+    base = ExponentialBaseline(KINDS, settings=ExponentialSettings(scales=UNIT, threshold=0.3))
     cands = [
         ("door_ahead", "doorway", np.array([2.0, 0.2])),
         ("door_side", "doorway", np.array([0.5, 2.0])),
@@ -77,9 +80,10 @@ def test_decision_null_and_forms() -> None:
     )
     out = base.step([("wall", "wall", np.array([0.0, -0.7]))], np.zeros(3))  # abeam: c = 1
     assert out.decision == ("wall_following", "wall") and out.confidence == pytest.approx(1.0)
-    strict = ExponentialBaseline(KINDS, settings=ExponentialSettings(threshold=0.99))
+    strict = ExponentialBaseline(KINDS, settings=ExponentialSettings(scales=UNIT, threshold=0.99))
     assert strict.step(cands, np.zeros(3)).decision is None
     assert strict.step([], np.zeros(3)).decision is None
+    assert ExponentialBaseline(KINDS).threshold_ == 0.4  # the form's default
     # Eq. (7.4): an object straight ahead, the input sideways along its surface, c = 1;
     # Eq. (7.5) scores the same object by the heading, also 1: the input tells them apart.
     obj = [("obj", "object", np.array([1.0, 0.0]))]
