@@ -1,5 +1,5 @@
-"""Recursive Bayesian filter with GMR user models (thesis Ch. 4) and the exponential
-baseline (Eq. 7.5)."""
+"""Recursive Bayesian filter with GMR user models (thesis Ch. 4); the exponential
+baseline's tests are in test_baseline_recogniser.py."""
 
 from __future__ import annotations
 
@@ -8,12 +8,6 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from autonomy.baseline_recogniser import (
-    BaselineScales,
-    BaselineSettings,
-    ExponentialBaseline,
-    baseline_confidence,
-)
 from autonomy.bayes_filter import (
     BayesFilterRecogniser,
     TaskUserModel,
@@ -227,58 +221,3 @@ def test_filter_rejects_bad_settings(rng: np.random.Generator) -> None:
     p = np.array([1.0, 0.0])
     with pytest.raises(ValueError, match="unique"):
         filt.step([("a", "doorway", p), ("a", "doorway", p)], np.ones(3))
-
-
-# ------------------------------------------------------------------------------ baseline
-
-
-@settings(max_examples=50, deadline=None)
-@given(
-    st.floats(0.0, 20.0),
-    st.floats(0.0, 1.3),
-    st.sampled_from([-1.0, 1.0]),
-    st.floats(0.01, 10.0),
-    st.floats(0.01, 10.0),
-    st.sampled_from(["product", "sum"]),
-)
-def test_baseline_confidence_in_unit_interval_and_monotone(
-    d: float, beta: float, sign: float, ka: float, kb: float, form: str
-) -> None:
-    for ref in (0.0, np.pi / 2):
-        sc = BaselineScales(k_alpha=ka, k_beta=kb, psi_ref=ref)
-
-        def c(dist: float, b: float, ref: float = ref, sc: BaselineScales = sc) -> float:
-            psi = sign * (ref + b)  # beta = ||psi| - psi_ref| = b, either side
-            return float(baseline_confidence(np.array([dist]), np.array([psi]), sc, form=form)[0])
-
-        c0 = c(d, beta)
-        assert 0.0 <= c0 <= 1.0
-        assert c(d + 0.5, beta) <= c0 and c(d, beta + 0.2) <= c0
-        if c0 > 1e-12 and (form == "sum" or beta > 1e-3):  # strictly, unless a factor is 0
-            assert c(d + 0.5, beta) < c0
-        if c0 > 1e-12 and (form == "sum" or d > 1e-3):
-            assert c(d, beta + 0.2) < c0
-
-
-def test_baseline_decision_and_null() -> None:
-    base = ExponentialBaseline(KINDS, settings=BaselineSettings(threshold=0.3))
-    cands = [
-        ("door_ahead", "doorway", np.array([2.0, 0.2])),
-        ("door_side", "doorway", np.array([0.5, 2.0])),
-        ("wall", "wall", np.array([3.0, 0.1])),  # wall dead ahead: beta ~ 90 deg
-    ]
-    out = base.step(cands, np.zeros(3))
-    assert out.decision == ("doorway_crossing", "door_ahead")
-    assert np.all((out.belief >= 0) & (out.belief <= 1))
-    assert out.confidence == pytest.approx(
-        np.exp(-np.hypot(2.0, 0.2) * np.arctan2(0.2, 2.0)), rel=1e-6
-    )
-    out = base.step([("wall", "wall", np.array([0.0, -0.7]))], np.zeros(3))  # abeam: c = 1
-    assert out.decision == ("wall_following", "wall") and out.confidence == pytest.approx(1.0)
-    strict = ExponentialBaseline(KINDS, settings=BaselineSettings(threshold=0.99))
-    assert strict.step(cands, np.zeros(3)).decision is None
-    assert strict.step([], np.zeros(3)).decision is None
-    with pytest.raises(ValueError, match="form"):
-        ExponentialBaseline(KINDS, settings=BaselineSettings(form="max"))
-    with pytest.raises(ValueError, match="unknown task"):
-        ExponentialBaseline(KINDS, settings=BaselineSettings(scales={"x": BaselineScales()}))

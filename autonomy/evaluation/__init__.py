@@ -6,7 +6,8 @@ an SVM, k-nearest neighbours and a random forest (F0.5, Table 7.6; ACR and MICAD
 Sec. 7.4.1); introspection on unseen task types (normalised entropy, Eq. 7.7, its
 histograms, Fig. 7.25, and MICAD, Table 7.9); success, error and null
 rates along held-out runs of the SOGP recogniser, the Bayes filter (Ch. 4) and the
-exponential baseline (Eq. 7.5). Choices where the thesis is silent: docs/decisions.md;
+exponential baseline in both forms (Eqs. 7.4, 7.5), tuned on the training runs. Choices
+where the thesis is silent: docs/decisions.md;
 measured figures: docs/results.md.
 """
 

@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from autonomy.baseline_recogniser import ExponentialBaseline
+from autonomy.baseline_recogniser import ExponentialBaseline, LabelledTicks, tune_exponential
 from autonomy.bayes_filter import BayesFilterRecogniser, fit_user_models, target_features
 from autonomy.evaluation.classifiers import FittedClassifier, fit_method, most_probable, recognise
 from autonomy.evaluation.correspondence import correspondence_rates, intra_cluster_dissimilarity
@@ -174,7 +174,8 @@ def _fold_rates(
     user_rng: np.random.Generator,
 ) -> dict[str, list[dict[str, float]]]:
     """Trajectory rates (Sec. 7.2.2) of the SOGP recogniser, the Bayes filter (Ch. 4)
-    and the exponential baseline (Eq. 7.5) on every tick of fold ``k``'s runs."""
+    and the exponential baseline in both forms (Eqs. 7.5, 7.4; scales and threshold tuned
+    on the training fold's runs) on every tick of fold ``k``'s runs."""
     labels, run, task, target = data.labels, data.run, data.task, data.target
     train_ticks = np.flatnonzero(data.fold != k)  # every tick: the user models need points
     feats = {
@@ -187,7 +188,12 @@ def _fold_rates(
     }
     user = fit_user_models(feats, rng=user_rng)
     filt = BayesFilterRecogniser(user, {c: data.kinds[c] for c in feats})
-    base = ExponentialBaseline({c: data.kinds[c] for c in labels})
+    kinds = {c: data.kinds[c] for c in labels}
+    training = _labelled_ticks(data, train_ticks)
+    bases = {
+        rec: ExponentialBaseline(kinds, settings=tune_exponential(training, kinds=kinds, form=form))
+        for rec, form in (("baseline", "psi"), ("baseline_theta", "theta"))
+    }
     rates: dict[str, list[dict[str, float]]] = {r: [] for r in RECOGNISERS}
     for r in np.unique(run[data.fold == k]):
         ticks_r = np.flatnonzero(run == r)
@@ -198,14 +204,31 @@ def _fold_rates(
             for rr, c in zip(rows, cols, strict=True)
         ]
         filt.reset()
-        base.reset()
-        dec_f, dec_b = [], []
+        dec: dict[str, list[Decision]] = {"bayes_filter": [], **{rec: [] for rec in bases}}
         for i in ticks_r:
             a, b = int(data.off[i]), int(data.off[i + 1])
             cands = [(data.ids[j], data.ckinds[j], data.pts[j]) for j in range(a, b)]
-            dec_f.append(filt.step(cands, data.u_norm[i]).decision)
-            dec_b.append(base.step(cands, data.u_norm[i]).decision)
+            dec["bayes_filter"].append(filt.step(cands, data.u_norm[i]).decision)
+            for rec, base in bases.items():
+                dec[rec].append(base.step(cands, data.u_norm[i]).decision)
         rates["sogp"].append(trajectory_rates(dec_sogp, truth_r))
-        rates["bayes_filter"].append(trajectory_rates(dec_f, truth_r))
-        rates["baseline"].append(trajectory_rates(dec_b, truth_r))
+        for rec, decisions in dec.items():
+            rates[rec].append(trajectory_rates(decisions, truth_r))
     return rates
+
+
+def _labelled_ticks(data: EvaluationData, rows: np.ndarray) -> LabelledTicks:
+    """Ticks ``rows`` with their candidates, for :func:`tune_exponential`."""
+    a, b = data.off[rows], data.off[rows + 1]
+    cand = np.concatenate([np.arange(x, y) for x, y in zip(a, b, strict=True)] or [[]])
+    cand = cand.astype(int)
+    return LabelledTicks(
+        points=data.pts[cand],
+        offsets=np.r_[0, np.cumsum(b - a)],
+        ids=data.ids[cand],
+        kinds=data.ckinds[cand],
+        u=data.u_norm[rows],
+        task=data.task[rows],
+        target=data.target[rows],
+        run=data.run[rows],
+    )

@@ -10,7 +10,8 @@ from autonomy.training import TrainSettings
 _SHIPPED = TrainSettings()  # the SOGP is evaluated as `asa train` builds it
 
 METHODS: tuple[str, ...] = ("sogp", "svm", "knn", "rf")
-RECOGNISERS: tuple[str, ...] = ("sogp", "bayes_filter", "baseline")
+# "baseline": Eq. (7.5), the psi form; "baseline_theta": Eq. (7.4), both tuned per fold
+RECOGNISERS: tuple[str, ...] = ("sogp", "bayes_filter", "baseline", "baseline_theta")
 WRONG_TARGET = "wrong_target"
 
 
