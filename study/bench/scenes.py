@@ -96,7 +96,7 @@ def _summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "scene_completion_rate": completion,
         "scene_completion_min": min(completion.values()),
         "scene_collisions_mean": collisions,
-        # the assisted modes' mean collisions over manual's (inf when manual has none)
+        # the larger assisted mean of collisions over manual's (None when manual has none)
         "scene_collisions_ratio": (
             round(assisted / collisions["manual"], 4) if collisions["manual"] > 0 else None
         ),

@@ -277,7 +277,7 @@ def generate(out: str | Path, *, seed: int, rooms: int | None = None, force: boo
     if out.is_dir():
         raise ValueError(f"{out}: is a directory, expected a .toml file to write")
     if out.exists() and not force:
-        raise ValueError(f"{out}: exists already; pass force (--force) to overwrite it")
+        raise ValueError(f"{out}: exists already; set force to overwrite it")
     data = generate_scene(np.random.default_rng(seed), rooms=rooms)
     data["name"] = f"generated_{seed}" + (f"_{rooms}rooms" if rooms is not None else "")
     header = (
