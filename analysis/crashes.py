@@ -3,10 +3,9 @@ crashed trial 0/0 "due to the crash of the robot, the clearance is assumed to be
 Fig. 7.44b (the clearance distribution per mode over all trials except the crashed ones).
 
 The clearance is the trial outcome's ``lrf_clearance`` (:mod:`tasks.clearance`: the laser's
-minimum range from the robot's centre). A trial is crashed when its outcome says so
-(``crashed``) or, for databases written before that flag, when the protocol ends trials on
-a collision and the trial had one. Shown only for protocols whose main trials end on a
-collision (``end_on_collision``), the Sec. 7.5 kind (docs/decisions.md).
+minimum range from the robot's centre); whether a trial crashed is the trial frame's
+``crashed`` column (:mod:`analysis.data.frames`). Shown only for protocols whose main
+trials end on a collision (``end_on_collision``), the Sec. 7.5 kind (docs/decisions.md).
 """
 
 from __future__ import annotations
@@ -26,28 +25,21 @@ def _outcomes(trial_table: pd.DataFrame) -> dict[int, dict]:
     }
 
 
-def crashed(outcome: dict, collisions: float) -> bool:
-    """Whether a collision ended the trial (older databases: it had a collision)."""
-    if "crashed" in outcome:
-        return bool(outcome["crashed"])
-    return bool(collisions and collisions > 0)
-
-
 def table_7_10(trials: pd.DataFrame, trial_table: pd.DataFrame) -> pd.DataFrame:
-    """One row per counted main trial: participant, mode, crashed, mean_m, std_m.
+    """One row per counted main trial (``trials``: the trial frame, with ``crashed``):
+    participant, mode, crashed, mean_m, std_m.
 
     A crashed trial's mean and SD are 0 (Table 7.10); a trial without ``lrf_clearance``
     (a database from before it was stored) has NaN.
     """
     outcomes = _outcomes(trial_table)
     rows = []
-    for pid, mode, tid, coll in zip(
-        trials["participant"], trials["mode"], trials["trial_id"], trials["collisions"],
+    for pid, mode, tid, crash in zip(
+        trials["participant"], trials["mode"], trials["trial_id"], trials["crashed"],
         strict=True,
     ):  # fmt: skip
-        o = outcomes.get(int(tid), {})
-        lrf = o.get("lrf_clearance") or {}
-        crash = crashed(o, coll)
+        lrf = outcomes.get(int(tid), {}).get("lrf_clearance") or {}
+        crash = bool(crash)
         mean = 0.0 if crash else _number(lrf.get("mean_m"))
         std = 0.0 if crash else _number(lrf.get("std_m"))
         rows.append({"participant": pid, "mode": mode, "crashed": crash,
@@ -86,11 +78,10 @@ def distribution(
     """
     outcomes = _outcomes(trial_table)
     by_mode: dict[str, np.ndarray] = {}
-    for mode, tid, coll in zip(trials["mode"], trials["trial_id"], trials["collisions"],
-                               strict=True):  # fmt: skip
+    for mode, tid, crash in zip(trials["mode"], trials["trial_id"], trials["crashed"],
+                                strict=True):  # fmt: skip
         counts = by_mode.setdefault(mode, np.zeros(len(edges)))
-        o = outcomes.get(int(tid), {})
-        hist = (o.get("lrf_clearance") or {}).get("histogram")
-        if not crashed(o, coll) and hist is not None and len(hist) == len(edges):
+        hist = (outcomes.get(int(tid), {}).get("lrf_clearance") or {}).get("histogram")
+        if not crash and hist is not None and len(hist) == len(edges):
             counts += np.asarray(hist, dtype=float)
     return pd.DataFrame(by_mode, index=pd.Index(edges, name="bin_low_m"))

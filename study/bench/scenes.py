@@ -19,9 +19,9 @@ from typing import Any
 import numpy as np
 
 from sim.check import check_scene
-from sim.generate import generate_scene, scene_toml
 from sim.scenario import load_scenario
 from study._blas import limit_blas_threads
+from study.bench.recognition import write_generated
 from study.engine.recognition import RecognitionTally
 from study.engine.standalone import standalone_trial
 from study.participants.synthetic import synthetic_participant
@@ -40,14 +40,11 @@ def scene_trials(seed: int) -> dict[str, Any]:
     ``timed_out``, ``collisions``, ``completion_time_s`` and ``recognition`` (counts)."""
     with tempfile.TemporaryDirectory(prefix="asa-bench-scene-") as tmp:
         folder = Path(tmp)
-        path = folder / f"generated_{seed}.toml"
-        data = generate_scene(np.random.default_rng(seed))
-        data["name"] = f"generated_{seed}"
-        path.write_text(scene_toml(data), encoding="utf-8")
+        (path,) = write_generated(folder, (seed,))
         sc = load_scenario(path)
         row: dict[str, Any] = {
             "seed": seed,
-            "problems": [p.line(str(path)) for p in check_scene(sc)],
+            "problems": [p.line(path) for p in check_scene(sc)],
         }
         person = np.random.SeedSequence([_SEED, seed])
         for mode in MODES:
@@ -55,7 +52,7 @@ def scene_trials(seed: int) -> dict[str, Any]:
                 folder,
                 synthetic_participant(np.random.default_rng(person)),
                 mode=mode,
-                scenario=str(path),
+                scenario=path,
                 inspection=bool(sc.inspection_object),
                 timeout_s=TIMEOUT_S,
                 secondary=SecondarySettings(block_size=BLOCK_SIZE),
