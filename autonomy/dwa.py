@@ -43,6 +43,9 @@ class DWASettings:
     weight_agreement: float = 1.0  # w_a: closeness to the user's command
     weight_clearance: float = 0.2  # w_c: smallest clearance within the horizon
     clearance_cap_m: float = 0.3  # [m] clearance beyond this scores no better
+    # the clearance term counts in proportion to the twist's progress along u (so slowing
+    # down or stopping never outscores following the user); False: it counts in full
+    clearance_by_progress: bool = True
     tolerance_m: float = 0.01  # [m] clearance loss allowed inside the protective field
     score_cell_m: float = 0.05  # [m] the scores see one laser point per grid square this size
     batch: int = 8  # twists in the first collision check, best-scored first (then doubling)
@@ -138,14 +141,21 @@ def _scores(
     """Scores of the twists ``samples`` (n, 3) and their poses (n, n_look, 3) every
     ``score_step_s`` along the horizon::
 
-        J = w_a (1 - ||v - u||_n) + w_c min(clearance, c_cap) / c_cap
+        J = w_a (1 - ||v - u||_n) + w_c p min(clearance, c_cap) / c_cap
 
     ``||v - u||_n`` in [0, 1] is the distance to the user's command with each channel
     normalised by twice its limit: smallest for the twist with the user's heading, speed
     and turn rate, so it carries the heading and velocity terms of Fox's objective; the
     clearance term (the footprint's smallest clearance along the horizon, capped) pushes
-    away from obstacles. The scores see one laser point per ``score_cell_m`` square
-    (``points`` (m, 2) [m], ``sq`` their squared norms): they only rank the twists."""
+    away from obstacles. ``p`` in [0, 1] is the twist's progress along the user's
+    translation relative to the window's point nearest ``u``, ``v*`` (first row of
+    ``samples``): ``clip(v_xy . u_xy / v*_xy . u_xy, 0, 1)`` (1 for every twist when
+    ``v*`` makes no progress, or with ``clearance_by_progress`` off). So the clearance a
+    standstill keeps cannot outscore an admissible twist that follows the user -- from
+    rest in front of a narrow doorway it otherwise does, for good, since the window is
+    centred on the velocity -- and in free space ``v*`` still scores best.
+    The scores see one laser point per ``score_cell_m`` square (``points`` (m, 2) [m],
+    ``sq`` their squared norms): they only rank the twists."""
     n = len(samples)
     n_look = max(1, math.ceil(st.horizon_s / st.score_step_s - 1e-9))
     look = arc_poses(samples, st.score_step_s * np.arange(1, n_look + 1))
@@ -158,7 +168,20 @@ def _scores(
     scale = np.array([2 * robot.max_speed, 2 * robot.max_speed, 2 * robot.max_yaw_rate])
     agreement = 1 - np.linalg.norm((samples - u) / scale, axis=1) / math.sqrt(3)
     clearance = np.clip(h_look.min(axis=1), 0.0, cap) / cap
-    return st.weight_agreement * agreement + st.weight_clearance * clearance, look
+    return st.weight_agreement * agreement + st.weight_clearance * clearance * _progress(
+        samples, u, st.clearance_by_progress
+    ), look
+
+
+def _progress(samples: np.ndarray, u: np.ndarray, enabled: bool) -> np.ndarray | float:
+    """Progress (n,) in [0, 1] of the twists ``samples`` (n, 3) along the translation of
+    ``u`` (3,), relative to the first row ``v*``: ``clip(v_xy . u_xy / v*_xy . u_xy, 0,
+    1)``; 1 when not ``enabled`` or when ``v*`` makes no progress along ``u``."""
+    along = samples[:, 0] * u[0] + samples[:, 1] * u[1]
+    best = float(along[0])
+    if not enabled or best < 1e-12:
+        return 1.0
+    return np.clip(along / best, 0.0, 1.0)
 
 
 def dwa(

@@ -14,7 +14,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import autonomy.reactive_bn as reactive_bn
-from autonomy.dwa import DWAResult
+from autonomy.dwa import DWAResult, DWASettings
 from autonomy.reactive_bn import ReactiveBNMode, ReactiveSettings, hold_creep
 from autonomy.safety import arc_poses, footprint_clearance, translation_distance
 from autonomy.types import RobotModel
@@ -72,18 +72,79 @@ def to_robot(segments: np.ndarray, pose: np.ndarray) -> np.ndarray:
     return np.stack((c * rel[..., 0] + s * rel[..., 1], -s * rel[..., 0] + c * rel[..., 1]), -1)
 
 
-def drive(arbitration: str, segments: np.ndarray, u: np.ndarray, ticks: int) -> np.ndarray:
-    """Clearances (ticks + 1,) [m] of the footprint while the mode is driven with ``u``."""
-    m, pose, velocity = mode(arbitration), np.zeros(3), np.zeros(3)
+def drive(
+    arbitration: str,
+    segments: np.ndarray,
+    u: np.ndarray,
+    ticks: int,
+    *,
+    m: ReactiveBNMode | None = None,
+    path: list | None = None,
+) -> np.ndarray:
+    """Clearances (ticks + 1,) [m] of the footprint while the mode (``m``, or a fresh
+    one with ``arbitration``) is driven from rest at the origin with ``u``; the poses
+    (x [m], y [m], yaw [rad]) are appended to ``path`` when given."""
+    m = m if m is not None else mode(arbitration)
+    pose, velocity = np.zeros(3), np.zeros(3)
     clearance = []
     for _ in range(ticks + 1):
         obs = synthetic_observation(to_robot(segments, pose), velocity=velocity)
         clearance.append(float(footprint_clearance(np.zeros((1, 3)), obs.points, ROBOT)[0]))
+        if path is not None:
+            path.append(pose.copy())
         velocity = m.step(obs, u).v
         dx, dy, dyaw = arc_poses(velocity, np.array([ROBOT.dt]))[0, 0]
         c, s = math.cos(pose[2]), math.sin(pose[2])
         pose = pose + np.array([c * dx - s * dy, s * dx + c * dy, dyaw])
     return np.array(clearance)
+
+
+def doorway(ahead: float, width: float, offset: float) -> np.ndarray:
+    """A wall across x with a doorway ``width`` [m] centred at y = ``offset``, its near
+    face ``ahead`` [m] in front of the footprint, walls along the room's sides."""
+    x = 0.3 + ahead + 0.05
+    y0, y1 = offset - width / 2, offset + width / 2
+    return np.concatenate(
+        [
+            box_segments((x, y1 + 2.0), (0.1, 4.0)),
+            box_segments((x, y0 - 2.0), (0.1, 4.0)),
+            box_segments((0.0, 2.5), (8.0, 0.1)),  # the room's side walls
+            box_segments((0.0, -2.5), (8.0, 0.1)),
+        ]
+    )
+
+
+@settings(max_examples=12, deadline=None)
+@given(
+    ahead=st.floats(0.15, 0.6),
+    width=st.floats(0.72, 0.95),
+    offset=st.floats(-0.06, 0.06),
+    speed=st.floats(0.3, 0.8),
+)
+def test_from_rest_before_a_narrow_doorway_the_exclusive_mode_drives_through(
+    ahead, width, offset, speed
+):
+    """A doorway 0.72-0.95 m wide for the 0.5 m robot (11-22 cm each side, beyond the
+    protective field), the robot at rest in front of it, the stick straight ahead: the
+    GOA action (the DWA) takes it through, clear of the frame. Before the DWA's clearance
+    term was weighted by progress it kept the standstill for good (issue 18, P13)."""
+    walls = doorway(ahead, width, offset)
+    u = np.array([speed, 0.0, 0.0])
+    beyond = 0.3 + ahead + 0.1 + 0.3  # [m] the whole footprint past the wall
+    path: list = []
+    ticks = math.ceil(beyond / (speed * ROBOT.dt)) + 40  # at u's speed, plus 2 s
+    clearance = drive("exclusive", walls, u, ticks=ticks, path=path)
+    assert clearance.min() >= ROBOT.protective_margin - 0.01  # DWA's tolerance inside it
+    assert path[-1][0] > beyond
+
+
+def test_the_unweighted_clearance_term_keeps_the_standstill_before_a_doorway():
+    """The trap the progress weighting removes (why the test above can fail)."""
+    old = ReactiveBNMode(ReactiveSettings(dwa=DWASettings(clearance_by_progress=False)))
+    old.reset(ROBOT)
+    path: list = []
+    drive("exclusive", doorway(0.3, 0.75, 0.0), np.array([0.4, 0.0, 0.0]), 40, m=old, path=path)
+    assert abs(path[-1][0]) < 0.05  # [m] never got going
 
 
 def test_straight_at_a_wall_stops_short_of_d_safe_instead_of_creeping():

@@ -14,7 +14,8 @@ current code: the JSON it writes agrees with that table to the test's tolerance 
 table moved here, 383 of its 384 numbers were bit-identical and one differed in the last
 bit). The reactive mode's rows record ``arbitration = "blend"`` (eq. 3.2 with ``beta`` the
 MAP posterior), the only behaviour before the setting existed; :func:`golden_mode` pins
-it, so the default ``"exclusive"`` left the JSON unchanged. If the generators' draws
+it, so the default ``"exclusive"`` left the JSON unchanged; likewise :data:`GOLDEN_DWA`
+pins the DWA's scoring as it was before ``clearance_by_progress``. If the generators' draws
 change, rerun it from the repository root (so that the checkout's code is imported)::
 
     python -m tests.golden.make_mode_equivalence
@@ -29,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from autonomy.dwa import dwa
+from autonomy.dwa import DWASettings, dwa
 from autonomy.reactive_bn import ReactiveBNMode, ReactiveSettings
 from autonomy.safety import safe_command
 from autonomy.types import RobotModel
@@ -47,9 +48,15 @@ COLUMNS = (
 )  # fmt: skip
 
 
+#: The DWA the rows were made with: the clearance term counted in full whatever the
+#: twist's progress (``clearance_by_progress`` came later and is off here).
+GOLDEN_DWA = DWASettings(clearance_by_progress=False)
+
+
 def golden_mode() -> ReactiveBNMode:
-    """The reactive mode the rows were made with: ``arbitration = "blend"``."""
-    return ReactiveBNMode(ReactiveSettings(arbitration="blend"))
+    """The reactive mode the rows were made with: ``arbitration = "blend"`` and
+    :data:`GOLDEN_DWA`."""
+    return ReactiveBNMode(ReactiveSettings(arbitration="blend", dwa=GOLDEN_DWA))
 
 
 def cases(n: int = N_CASES) -> Iterator[tuple[RobotModel, Observation, np.ndarray]]:
@@ -82,7 +89,7 @@ def outputs(
     if mode.robot_ is None:
         mode.reset(robot)
     a = mode.step(obs, u)
-    r = dwa(u, obs.points, obs.velocity, robot)
+    r = dwa(u, obs.points, obs.velocity, robot, settings=GOLDEN_DWA)
     v_safe, scale = safe_command(u, obs.points, robot)
     _, scale_fast = safe_command(r.v * 1.5, obs.points, robot, horizon_s=1.0)
     got = [*a.v, a.beta, a.scores["p_occ"], a.scores["d"], *r.v, r.clearance, r.n_checked]
