@@ -84,6 +84,17 @@ DEVIATIONS: tuple[Deviation, ...] = (
         '(Eq. 3.11), which the thesis also states, is the setting arbitration = "blend".',
     ),
     Deviation(
+        "Reactive mode: turning and the dynamic window",
+        ("reactive_bn",),
+        "With exclusive arbitration, object approach attenuates the translation only "
+        "(Eq. 3.6 and 3.7) and keeps the rotation, slowed only where the robot's corners "
+        "would sweep into the protective field, so that an operator near a wall can turn "
+        "away; the dynamic window's clearance term is weighted by each motion's progress "
+        "along the user's command, so that stopping never scores better than an admissible "
+        "motion the user asks for (not in the thesis; without it the robot stayed at rest "
+        "in front of narrow doorways).",
+    ),
+    Deviation(
         "Sec. 7.5 robot and scene",
         (),
         "The thesis's Sec. 7.5 study flew a simulated quadrotor of radius 0.39 m through an "

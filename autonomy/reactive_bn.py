@@ -28,7 +28,7 @@ from scipy.special import ndtr
 from autonomy.arbitration import blend
 from autonomy.dwa import DWASettings, dwa
 from autonomy.modes import register, settings_from
-from autonomy.safety import translation_distance
+from autonomy.safety import safe_command, translation_distance
 from autonomy.types import EMPTY_PATH, Assist, RobotModel
 
 SITUATIONS = ("FT", "OA", "GOA")
@@ -427,8 +427,10 @@ class ReactiveBNMode:
         """The MAP situation's action ``g`` (3,) and the DWA's predicted path (k, 3);
         ``rotation``: the input was taken for a pure rotation (FT, passed through)."""
         s, robot = self.settings, self.robot_
-        if label == "OA":
-            return alpha * u, EMPTY_PATH  # Eq. (3.6): zero within d_safe
+        if label == "OA":  # Eq. (3.6): zero within d_safe
+            if s.arbitration == "exclusive":
+                return oa_turning(u, alpha, obs.points, robot), EMPTY_PATH
+            return alpha * u, EMPTY_PATH
         if label == "GOA":
             # Eq. (3.8); zero when no sampled twist is admissible
             result = dwa(u, obs.points, obs.velocity, robot, settings=s.dwa)
@@ -436,6 +438,35 @@ class ReactiveBNMode:
         if rotation and s.arbitration == "exclusive":
             return hold_creep(u, obs.points, robot, s.d_safe), EMPTY_PATH
         return u.copy(), EMPTY_PATH  # Eq. (3.5)
+
+
+ROTATION_HORIZON_S = 0.25  # [s] a rotation kept in OA must stay clear this long
+
+
+def oa_turning(u: np.ndarray, alpha: float, points: np.ndarray, robot: RobotModel) -> np.ndarray:
+    """Object Approach's action under exclusive arbitration: the translation attenuated,
+    ``alpha u_xy`` (Eq. 3.6, 3.7), the rotation kept -- slowed by the safety layer
+    (:func:`autonomy.safety.safe_command`, :data:`ROTATION_HORIZON_S`) only as far as
+    the footprint's corners would sweep into the protective field. OA is about driving
+    *towards* an obstacle; with ``alpha u`` taken literally the rotation stopped as
+    well, so an operator within about 0.5 m of a wall (alpha < 0.14) could not turn
+    away while the stick also pushed towards it (a pure rotation already passes, FT).
+
+    Parameters
+    ----------
+    u : (3,) command (v_x [m/s], v_y [m/s], omega [rad/s]).
+    alpha : attenuation in [0, 1) (Eq. 3.7).
+    points : (m, 2) [m] laser points in the robot frame.
+    robot : footprint, protective margin, limits, control tick.
+
+    Returns
+    -------
+    (3,) ``(alpha v_x, alpha v_y, omega')`` with ``|omega'| <= |omega|``.
+    """
+    turn, _ = safe_command(
+        np.array([0.0, 0.0, u[2]]), points, robot, horizon_s=ROTATION_HORIZON_S
+    )
+    return np.array([alpha * u[0], alpha * u[1], turn[2]])
 
 
 def hold_creep(u: np.ndarray, points: np.ndarray, robot: RobotModel, d_safe: float) -> np.ndarray:

@@ -204,3 +204,31 @@ def test_a_creeping_pure_rotation_keeps_its_rotation_but_not_its_creep():
     out = mode().step(synthetic_observation(box_segments((2.0, 0.0), (0.1, 8.0))), creep)
     assert out.label == "FT" and out.beta == 0.0  # far from the wall: u as given
     np.testing.assert_array_equal(out.v, creep)
+
+
+def test_object_approach_keeps_the_turn_and_stops_the_approach():
+    """Backing towards a wall 0.3 m behind while turning (generated scene 17's trap): OA
+    stops the translation (alpha < 0.01) and keeps the turn; the blend scales both."""
+    wall = box_segments((-(0.3 + 0.3 + 0.05), 0.0), (0.1, 8.0))  # 0.3 m behind
+    obs = synthetic_observation(wall)
+    u = np.array([-0.2, 0.0, -1.0])
+    out = mode().step(obs, u)
+    assert out.label == "OA"
+    assert math.hypot(out.v[0], out.v[1]) * ROBOT.dt < 1e-4  # [m] per tick: stopped
+    assert out.v[2] == pytest.approx(u[2])  # the corners stay clear: the turn as given
+    blended = mode("blend").step(obs, u)
+    assert abs(blended.v[2]) < abs(u[2])
+
+
+def test_object_approach_slows_a_turn_whose_corners_would_hit():
+    """A box just beside the front corner: the turn that sweeps the corner into it is
+    slowed (kept out of the protective field), the opposite turn is not."""
+    post = box_segments((0.3 + 0.03 + 0.05, 0.25 + 0.05 + 0.05), (0.1, 0.1))
+    wall = box_segments((0.3 + 0.25 + 0.05, 0.0), (0.1, 8.0))  # ahead: the approach is OA
+    obs = synthetic_observation(np.concatenate([post, wall]))
+    u_into = np.array([0.2, 0.0, 1.2])  # counter-clockwise: the front-left corner swings left
+    into = mode().step(obs, u_into)
+    assert into.label == "OA"
+    assert abs(into.v[2]) < 1.2
+    away = mode().step(obs, np.array([0.2, 0.0, -1.2]))
+    assert away.label == "OA" and away.v[2] == pytest.approx(-1.2)
