@@ -21,7 +21,7 @@ import numpy as np
 
 from sim.scenario import Box, Cylinder, Scenario
 from sim.types import Contact, Pose2D, wrap_angle
-from tasks.geometry import polygon_distances
+from tasks.inspection import InspectionTracker
 
 GOALS: tuple[str, ...] = ("dock", "start")
 ROUTE_POINT_GOALS: dict[str, str] = {"A": "start", "B": "dock"}  # a protocol's route points
@@ -230,6 +230,17 @@ def route_from_points(points: Sequence[str]) -> tuple[str, ...]:
 # ---------------------------------------------------------------------------- task
 
 
+def inspection_tracker(obj: Box | Cylinder, settings: PrimarySettings) -> InspectionTracker:
+    """A tracker of the inspection of ``obj`` with the criterion of ``settings``."""
+    return InspectionTracker(
+        obj,
+        band=settings.inspection_distance_m,
+        facing_tolerance_deg=settings.facing_tolerance_deg,
+        min_sideways_speed=settings.min_sideways_speed,
+        min_arc_deg=settings.min_arc_deg,
+    )
+
+
 class PrimaryTask:
     """The primary-task state machine of one trial.
 
@@ -291,13 +302,7 @@ class PrimaryTask:
         self._clearances: list[float] = []  # [m] finite per-tick clearances
         self._hist = np.zeros(len(CLEARANCE_BIN_EDGES_M), dtype=np.int64)
         self._hist_n = 0
-        # inspection
-        self._in_visit = False
-        self._visit_started = False  # inspection_started reported for this visit
-        self._visit_arc = 0.0  # [rad] signed net arc of the current visit
-        self._last_phi = math.nan  # [rad] polar angle about the object at the last tick
-        self._best_arc = 0.0  # [rad]
-        self._inspected = False
+        self._tracker = None if self._object is None else inspection_tracker(self._object, s)
         self._inspection_s = math.nan
 
     # -- state ------------------------------------------------------------------------
@@ -328,12 +333,12 @@ class PrimaryTask:
 
     @property
     def inspection_done(self) -> bool:
-        return self._inspected
+        return self._tracker is not None and self._tracker.done
 
     @property
     def inspection_arc_deg(self) -> float:
         """Largest absolute net arc [deg] of any visit so far."""
-        return math.degrees(self._best_arc)
+        return 0.0 if self._tracker is None else math.degrees(self._tracker.best_arc)
 
     @property
     def collisions(self) -> int:
@@ -418,7 +423,7 @@ class PrimaryTask:
         goal = s.route[self._leg]
         if self._goal_reached(goal, pose):
             final = self._leg == len(s.route) - 1
-            if final and s.inspection_required and not self._inspected:
+            if final and s.inspection_required and not self.inspection_done:
                 if not self._at_final:
                     events.append(PrimaryEvent("inspection_missing", t, self._leg, goal))
                 self._at_final = True
@@ -462,54 +467,17 @@ class PrimaryTask:
             self._clearances.append(clearance)
 
     def _inspect(self, t: float, pose: Pose2D, v: np.ndarray, events: list[PrimaryEvent]) -> None:
-        """Track the inspection: the surface distance from the robot centre, visits and arcs.
-
-        A tick qualifies when the distance is within ``inspection_distance_m``, the
-        object's centre lies within ``facing_tolerance_deg`` of the heading and the robot
-        moves sideways (``|v_y| >= min_sideways_speed`` and ``|v_y| > |v_x|``). A visit is
-        a maximal run of ticks within the band; the signed angle swept about the object's
-        centre is summed over qualifying ticks, and the inspection is done when a visit's
-        absolute net arc reaches ``min_arc_deg``.
-        """
-        obj = self._object
-        if obj is None or self._inspected:
+        """Track the inspection (:class:`tasks.inspection.InspectionTracker`, the criterion
+        of ``settings``); report ``inspection_started`` and ``inspection_done``."""
+        if self._tracker is None:
             return
-        s = self.settings
-        cx, cy = obj.centre
-        dx, dy = cx - pose.x, cy - pose.y
-        if isinstance(obj, Cylinder):
-            surface = max(0.0, math.hypot(dx, dy) - obj.radius)
-        else:
-            surface = float(polygon_distances(np.array([[pose.x, pose.y]]), obj.corners())[0])
-        near, far = s.inspection_distance_m
-        in_band = near <= surface <= far
-        phi = math.atan2(-dy, -dx)  # polar angle of the robot about the object's centre
-        if not in_band:
-            self._in_visit = False
-            self._last_phi = phi
-            return
-        if not self._in_visit:  # a new visit starts from zero
-            self._in_visit = True
-            self._visit_started = False
-            self._visit_arc = 0.0
-            self._last_phi = phi
-        facing = abs(wrap_angle(math.atan2(dy, dx) - pose.yaw)) <= math.radians(
-            s.facing_tolerance_deg
-        )
-        sideways = abs(v[1]) >= s.min_sideways_speed and abs(v[1]) > abs(v[0])
-        if facing and sideways:
-            if not self._visit_started:
-                self._visit_started = True
-                events.append(PrimaryEvent("inspection_started", t))
-            self._visit_arc += wrap_angle(phi - self._last_phi)
-            self._best_arc = max(self._best_arc, abs(self._visit_arc))
-            if abs(self._visit_arc) >= math.radians(s.min_arc_deg) - 1e-12:
-                self._inspected = True
-                self._inspection_s = t - self.t_start
-                events.append(
-                    PrimaryEvent("inspection_done", t, arc_deg=math.degrees(abs(self._visit_arc)))
-                )
-        self._last_phi = phi
+        event = self._tracker.update(pose, v)
+        if event == "started":
+            events.append(PrimaryEvent("inspection_started", t))
+        elif event == "done":
+            self._inspection_s = t - self.t_start
+            arc = math.degrees(abs(self._tracker.visit_arc))
+            events.append(PrimaryEvent("inspection_done", t, arc_deg=arc))
 
     # -- result -----------------------------------------------------------------------
 
@@ -541,7 +509,7 @@ class PrimaryTask:
             clearance_histogram=tuple(int(c) for c in self._hist),
             clearance_samples=self._hist_n,
             inspection_required=s.inspection_required,
-            inspection_done=self._inspected,
+            inspection_done=self.inspection_done,
             inspection_arc_deg=self.inspection_arc_deg,
             inspection_time_s=self._inspection_s,
             route=s.route,
