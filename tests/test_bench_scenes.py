@@ -66,3 +66,15 @@ def test_one_generated_scene_in_every_mode():
     assert f["scene_seeds"] == [0] and f["scene_checker_rejects"] == 0
     assert set(f["scene_completion_rate"]) == set(MODES)
     assert 0.0 <= f["scene_recognition_match"] <= f["scene_task_match"] <= 1.0
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", [17, 19])
+def test_the_reactive_mode_lets_the_driver_finish_where_it_was_trapped(seed):
+    """Generated scenes 17 and 19 timed out in the exclusive reactive mode: the driver,
+    backing towards a wall next to the inspection object, could neither back off (OA,
+    alpha ~ 0) nor turn (OA scaled the turn too), and insisted on its orbit's exact entry."""
+    from study.bench.scenes import scene_trials
+
+    row = scene_trials(seed)
+    assert row["reactive_bn"]["completed"] and row["reactive_bn"]["collisions"] == 0

@@ -15,10 +15,12 @@ from typing import Any
 import numpy as np
 
 from sim.occupancy import OccupancyGrid, build_grid, clearance_map, inflate, shortest_path
-from sim.scenario import Cylinder, Scenario
+from sim.scenario import Box, Cylinder, Scenario
 from sim.types import Observation, Pose2D, wrap_angle
 from study.participants.base import ParticipantBase
 from study.types import ParticipantInput, ScreenState, TrialInfo
+from tasks.inspection import InspectionTracker
+from tasks.primary import PrimarySettings, inspection_tracker
 
 _QUESTION = re.compile(r"^\s*(\d+)\s*([+-])\s*(\d+)\s*=\s*(\d+)")
 
@@ -44,6 +46,9 @@ class ScriptedSettings:
     answer_delay_s: float = 1.2  # [s] from a question appearing to the answer
     stuck_s: float = 1.5  # [s] pushing without moving this long counts as stuck
     backoff_s: float = 0.8  # [s] then it backs away from where it was pushing
+    # stuck this often on the way to the orbit's entry, it starts the orbit from where it
+    # is (a person does not insist on an exact spot the robot will not go to)
+    entry_tries: int = 2
     accuracy: float = 0.9  # probability of a right answer
 
     def __post_init__(self) -> None:
@@ -59,6 +64,13 @@ class ScriptedSettings:
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"ScriptedSettings: field '{name}': must be > 0, got {value!r}")
+        if isinstance(self.entry_tries, bool) or not (
+            isinstance(self.entry_tries, int) and self.entry_tries >= 1
+        ):
+            raise ValueError(
+                f"ScriptedSettings: field 'entry_tries': must be an integer >= 1, "
+                f"got {self.entry_tries!r}"
+            )
         if not 0.0 <= self.accuracy <= 1.0:
             raise ValueError(
                 f"ScriptedSettings: field 'accuracy': must be in [0, 1], got {self.accuracy!r}"
@@ -70,6 +82,7 @@ class ScriptedSettings:
 # costs about 0.1 s, paid once per route instead of once per trial.
 _PATHS: dict[tuple[Any, ...], np.ndarray] = {}
 _MAX_PATHS = 256
+ORBIT_EXTRA = math.pi / 2  # [rad] an orbit goes on this far beyond its plan while watching
 _AHEAD_CHUNK = 32  # path points per look for the lookahead point (_follow_path)
 
 
@@ -160,6 +173,9 @@ class ScriptedParticipant(ParticipantBase):
         self._still_at = (math.nan, math.nan, math.nan)  # pose then
         self._backoff_until = -math.inf  # [s]
         self._backoff_u = np.zeros(3)
+        self._stuck = 0  # stuck episodes on the current leg
+        # the inspection as the task counts it, watched while orbiting (None: no object)
+        self._watch: InspectionTracker | None = None
         self.texts_read: list[str] = []
 
     # ------------------------------------------------------------ non-driving
@@ -277,7 +293,8 @@ class ScriptedParticipant(ParticipantBase):
 
     def begin_trial(self, info: TrialInfo) -> None:
         """Plan the trial's route (and inspection) on the scene's occupancy grid."""
-        self._legs, self._leg, self._progress = [], 0, 0
+        self._legs, self._leg, self._progress, self._stuck = [], 0, 0, 0
+        self._watch = None
         self._question, self._answered = None, None
         self._still_since, self._backoff_until = math.nan, -math.inf
         self._drive = info.drive
@@ -297,10 +314,11 @@ class ScriptedParticipant(ParticipantBase):
             else:
                 goals.append((np.array([start.x, start.y]), None))
         if info.inspection and scenario.inspection_object:
-            min_arc = 90.0
-            if info.primary is not None:
-                min_arc = float(info.primary.min_arc_deg)
-            arc = math.radians(min_arc + self.settings.arc_margin_deg)
+            primary = info.primary if info.primary is not None else PrimarySettings()
+            element = scenario.element(scenario.inspection_object)
+            if isinstance(element, Box | Cylinder):
+                self._watch = inspection_tracker(element, primary)
+            arc = math.radians(primary.min_arc_deg + self.settings.arc_margin_deg)
             entry, orbit = self._orbit_plan(scenario, grid, arc, here, goals[0][0])
             self._legs.append(_PathLeg(self._path(scenario, here, entry), None, True, orbit.centre))
             self._legs.append(orbit)
@@ -343,6 +361,8 @@ class ScriptedParticipant(ParticipantBase):
         """Follow the plan and answer questions."""
         answer = self._answer(screen, obs.t)
         u = np.zeros(3)
+        if self._watch is not None:
+            self._watch.update(obs.pose, obs.velocity)
         if self._drive and not screen.paused:
             while self._leg < len(self._legs):
                 leg = self._legs[self._leg]
@@ -351,14 +371,21 @@ class ScriptedParticipant(ParticipantBase):
                     if isinstance(leg, _OrbitLeg)
                     else self._follow_path(obs.pose, leg)
                 )
-                if step is not None:
+                if step is not None and not self._give_up_entry(leg):
                     u = step
                     break
                 self._leg += 1
-                self._progress = 0
+                self._progress, self._stuck = 0, 0
                 self._swept, self._last_phi = 0.0, math.nan
             u = self._unstick(obs.t, obs.pose, u)
         return ParticipantInput(u=u, answer=answer)
+
+    def _give_up_entry(self, leg: _PathLeg | _OrbitLeg) -> bool:
+        """Whether to leave ``leg``, the way to the orbit's entry (it faces the object),
+        after ``entry_tries`` stuck episodes on it, and orbit from where the robot is."""
+        return isinstance(leg, _PathLeg) and leg.face is not None and (
+            self._stuck >= self.settings.entry_tries
+        )
 
     def _unstick(self, t: float, pose: Pose2D, u: np.ndarray) -> np.ndarray:
         """Back away for ``backoff_s`` after pushing ``stuck_s`` without the robot moving
@@ -377,6 +404,7 @@ class ScriptedParticipant(ParticipantBase):
             back = -np.asarray(u[:2]) / math.hypot(u[0], u[1]) * 0.5 * s.speed
             self._backoff_u = np.array([back[0], back[1], 0.0])
             self._backoff_until = t + s.backoff_s
+            self._stuck += 1
             self._still_since, self._still_at = t + s.backoff_s, (pose.x, pose.y, pose.yaw)
             return self._backoff_u
         return u
@@ -437,7 +465,10 @@ class ScriptedParticipant(ParticipantBase):
         if not math.isnan(self._last_phi):
             self._swept += leg.direction * wrap_angle(phi - self._last_phi)
         self._last_phi = phi
-        if self._swept >= leg.arc:
+        # done when the watched visit's net arc counts (drift before the orbit may have
+        # taken some of it back), at most a quarter turn beyond the planned arc
+        watched = self._watch is not None and self._watch.done
+        if watched or self._swept >= leg.arc + (0.0 if self._watch is None else ORBIT_EXTRA):
             return None
         face = math.atan2(-dy, -dx)
         # facing the centre, the robot's +y (left) is the clockwise tangent
