@@ -76,7 +76,10 @@ def test_the_entry_is_given_up_after_entry_tries_stuck_episodes():
     p = ScriptedParticipant(np.random.default_rng(0), settings=ScriptedSettings(entry_tries=2))
     entry = _PathLeg(np.zeros((3, 2)), None, True, face=(0.0, 0.0))
     goal = _PathLeg(np.zeros((3, 2)), 0.0, True)
+    near, far = Pose2D(0.3, 0.0, 0.0), Pose2D(2.0, 0.0, 0.0)
     p._stuck = 1
-    assert not p._give_up_entry(entry)
+    assert not p._give_up_entry(entry, near)
     p._stuck = 2
-    assert p._give_up_entry(entry) and not p._give_up_entry(goal) and not p._give_up_entry(LEG)
+    assert p._give_up_entry(entry, near)
+    assert not p._give_up_entry(goal, near) and not p._give_up_entry(LEG, near)
+    assert not p._give_up_entry(entry, far) and p._stuck == 0  # far away: forgotten

@@ -46,9 +46,10 @@ class ScriptedSettings:
     answer_delay_s: float = 1.2  # [s] from a question appearing to the answer
     stuck_s: float = 1.5  # [s] pushing without moving this long counts as stuck
     backoff_s: float = 0.8  # [s] then it backs away from where it was pushing
-    # stuck this often on the way to the orbit's entry, it starts the orbit from where it
-    # is (a person does not insist on an exact spot the robot will not go to)
+    # stuck this often within entry_radius_m of the orbit's entry, it starts the orbit
+    # from where it is (a person does not insist on an exact spot the robot will not go to)
     entry_tries: int = 2
+    entry_radius_m: float = 0.5
     accuracy: float = 0.9  # probability of a right answer
 
     def __post_init__(self) -> None:
@@ -60,6 +61,7 @@ class ScriptedSettings:
             "answer_delay_s",
             "stuck_s",
             "backoff_s",
+            "entry_radius_m",
         ):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
@@ -371,7 +373,7 @@ class ScriptedParticipant(ParticipantBase):
                     if isinstance(leg, _OrbitLeg)
                     else self._follow_path(obs.pose, leg)
                 )
-                if step is not None and not self._give_up_entry(leg):
+                if step is not None and not self._give_up_entry(leg, obs.pose):
                     u = step
                     break
                 self._leg += 1
@@ -380,12 +382,18 @@ class ScriptedParticipant(ParticipantBase):
             u = self._unstick(obs.t, obs.pose, u)
         return ParticipantInput(u=u, answer=answer)
 
-    def _give_up_entry(self, leg: _PathLeg | _OrbitLeg) -> bool:
+    def _give_up_entry(self, leg: _PathLeg | _OrbitLeg, pose: Pose2D) -> bool:
         """Whether to leave ``leg``, the way to the orbit's entry (it faces the object),
-        after ``entry_tries`` stuck episodes on it, and orbit from where the robot is."""
-        return isinstance(leg, _PathLeg) and leg.face is not None and (
-            self._stuck >= self.settings.entry_tries
-        )
+        and orbit from where the robot is: after ``entry_tries`` stuck episodes within
+        ``entry_radius_m`` of the entry (episodes farther away are forgotten: there it
+        keeps going)."""
+        if not isinstance(leg, _PathLeg) or leg.face is None:
+            return False
+        s = self.settings
+        if math.hypot(pose.x - leg.points[-1][0], pose.y - leg.points[-1][1]) > s.entry_radius_m:
+            self._stuck = 0
+            return False
+        return self._stuck >= s.entry_tries
 
     def _unstick(self, t: float, pose: Pose2D, u: np.ndarray) -> np.ndarray:
         """Back away for ``backoff_s`` after pushing ``stuck_s`` without the robot moving
