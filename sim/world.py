@@ -239,7 +239,8 @@ class World:
         heading halfway through the substep, so a constant command drives a circular
         arc. VELOCITY_CONTROL motors drive the joints (:func:`motor_limits`): the x and y
         motors with a finite force, so an obstacle pushes back, the yaw motor with
-        enough torque that no contact turns the robot.
+        enough torque that no contact turns the robot; contacts are frictionless, so the
+        robot slides along what it touches.
         The pybullet calls are bound once per tick and a substep without any contact
         point skips the contact bookkeeping.
         """

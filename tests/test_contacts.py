@@ -158,6 +158,47 @@ def test_pushing_obliquely_into_a_wall_slides_and_turns_on_command(
             assert abs(turned) > 0.5 * abs(omega)
 
 
+def corridor(width_m: float) -> Scenario:
+    """A closed corridor 6 m long and ``width_m`` [m] wide between its walls' faces,
+    along x at y = 0."""
+    h = width_m / 2 + 0.05  # wall centre lines (walls 0.1 m thick)
+    walls = [
+        {"name": "south", "from": [0, -h], "to": [6, -h]},
+        {"name": "north", "from": [6, h], "to": [0, h]},
+        {"name": "west", "from": [0, h], "to": [0, -h]},
+        {"name": "east", "from": [6, -h], "to": [6, h]},
+    ]
+    return parse_scenario({"name": "corridor", "start": {"x": 1.0, "y": 0.0}, "walls": walls}, "c")
+
+
+def test_turning_against_both_walls_of_a_corridor_keeps_driving(
+    rng: np.random.Generator,
+) -> None:
+    """Driving along a corridor barely wider than the robot while commanding a turn: the
+    corners press into both walls, the heading stays what the corridor allows, and the
+    robot still drives on (a contact's friction would hold it as the yaw motor presses)."""
+    for _ in range(3):
+        width = float(rng.uniform(0.52, 0.7))  # [m] the robot is 0.5 m wide
+        speed = float(rng.uniform(0.3, 0.8))  # [m/s]
+        omega = float(rng.choice([-1, 1]) * rng.uniform(0.6, 1.2))  # [rad/s]
+        scenario = corridor(width)
+        with World(scenario, seed=int(rng.integers(1 << 31)), components=()) as world:
+            world.apply(np.array([speed, 0.0, omega]))
+            touched = 0
+            for _ in range(round(2.0 / DT)):
+                world.step()
+                touched += world.touching
+                corners = world.true_pose().to_map_frame(scenario.robot.footprint())
+                assert np.abs(corners[:, 1]).max() < width / 2 + 0.005  # inside the walls
+            assert touched >= round(1.0 / DT)
+            # the heading the corridor allows: length sin(yaw) + width cos(yaw) <= width
+            robot = scenario.robot
+            yaw = abs(world.true_pose().yaw)
+            assert robot.length * math.sin(yaw) + robot.width * math.cos(yaw) < width + 0.01
+            commanded = speed * 2.0 - speed**2 / (2 * robot.max_accel)
+            assert world.true_pose().x - scenario.start.x > 0.8 * math.cos(yaw) * commanded
+
+
 def _clearance_to_wall(world: World) -> float:
     """Gap [m] between the footprint and the east wall's face (< 0 when overlapping)."""
     corners = world.true_pose().to_map_frame(world.scenario.robot.footprint())
