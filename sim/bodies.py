@@ -74,7 +74,12 @@ def build_scene(scenario: Scenario, pb: dict[str, int]) -> dict[int, tuple[Solid
 
 def build_robot(scenario: Scenario, pb: dict[str, int]) -> int:
     """The robot's multibody: prismatic x, prismatic y and revolute yaw joints (two
-    massless dummy links), the last link the robot's box; no damping."""
+    massless dummy links), the last link the robot's box; no damping, no friction.
+
+    Bullet multiplies the two bodies' friction coefficients, so the robot's zero makes
+    every contact frictionless: the box slides along what it touches, and a turn that
+    presses its corners against an obstacle does not lock its translation.
+    """
     r = scenario.robot
     half = [r.length / 2, r.width / 2, r.height / 2]
     col = p.createCollisionShape(p.GEOM_BOX, halfExtents=half, **pb)
@@ -100,6 +105,14 @@ def build_robot(scenario: Scenario, pb: dict[str, int]) -> int:
         **pb,
     )
     for j in JOINTS:
-        p.changeDynamics(body, j, linearDamping=0.0, angularDamping=0.0, jointDamping=0.0, **pb)
+        p.changeDynamics(
+            body,
+            j,
+            linearDamping=0.0,
+            angularDamping=0.0,
+            jointDamping=0.0,
+            lateralFriction=0.0,
+            **pb,
+        )
         p.setCollisionFilterGroupMask(body, j, _ROBOT_GROUP, SCENE_GROUP, **pb)
     return body

@@ -23,6 +23,7 @@ from sim._pybullet import pybullet as p
 from sim.bodies import JOINTS, SCENE_GROUP, build_robot, build_scene
 from sim.lasers import Fans, laser_beams, laser_fans, laser_rays
 from sim.scenario import Scenario
+from sim.scene import RobotSpec
 from sim.semantics import RobotFrameComponents, derive_components, in_robot_frame
 from sim.sensors import cast
 from sim.types import (
@@ -48,7 +49,7 @@ class WorldSettings:
     physics_hz: int = 240  # physics substeps per second (rounded to whole substeps per tick)
     contact_debounce_s: float = 0.3  # [s] no contact this long ends a collision episode
     contact_tolerance_m: float = 0.001  # [m] contact points closer than this count as touch
-    motor_force_factor: float = 3.0  # motor force / (mass * max_accel); > 1 to track the ramp
+    motor_force_factor: float = 3.0  # x, y motor force / (mass * max_accel); > 1 to track the ramp
     velocity_sigma: float = 0.01  # [m/s] noise of the odometry's (v_x, v_y)
     laser_backend: str = "analytic"  # "analytic" (exact 2D caster) or "pybullet" (rayTestBatch)
     gui: bool = False  # pybullet's own window (one per process); DIRECT otherwise
@@ -82,6 +83,23 @@ def clip_command(v: np.ndarray, max_speed: float, max_yaw_rate: float) -> np.nda
         out[:2] *= max_speed / speed
     out[2] = min(max(out[2], -max_yaw_rate), max_yaw_rate)
     return out
+
+
+def motor_limits(robot: RobotSpec, motor_force_factor: float, h: float) -> list[float]:
+    """Largest force [N] of the x and y joint motors and torque [N m] of the yaw motor.
+
+    The x and y motors get ``motor_force_factor`` times what ``max_accel`` needs, so an
+    obstacle pushes back. The yaw motor must not give way to a contact, as a holonomic
+    base's wheels hold its heading: in one physics substep ``h`` [s] it can absorb the
+    largest angular impulse a contact can deliver, the robot's momentum at top speed
+    stopped at the footprint's farthest point from its centre,
+    ``mass * max_speed * half_diagonal / h`` (or what ``max_yaw_accel`` needs, if more).
+    """
+    force = motor_force_factor * robot.mass * robot.max_accel
+    yaw_inertia = robot.mass * (robot.length**2 + robot.width**2) / 12.0  # box about z
+    ramp = motor_force_factor * yaw_inertia * robot.max_yaw_accel
+    impact = robot.mass * robot.max_speed * math.hypot(robot.length, robot.width) / 2 / h
+    return [force, force, max(ramp, impact)]
 
 
 class World:
@@ -126,10 +144,7 @@ class World:
         self._groups = build_scene(scenario, self._pb)  # static body -> its solids
         self._robot = build_robot(scenario, self._pb)
         robot = scenario.robot
-        yaw_inertia = robot.mass * (robot.length**2 + robot.width**2) / 12.0  # box about z
-        force = settings.motor_force_factor * robot.mass * robot.max_accel
-        torque = settings.motor_force_factor * yaw_inertia * robot.max_yaw_accel
-        self._forces = [force, force, torque]
+        self._forces = motor_limits(robot, settings.motor_force_factor, self._h)
         self._beams = tuple(laser_beams(spec) for spec in robot.lasers)
         self._fans = laser_fans(scenario, self._beams)
         self._rays = laser_rays(robot.lasers, self._beams)
@@ -222,8 +237,10 @@ class World:
         set-point rate limited by ``max_accel`` (translational vector) and
         ``max_yaw_accel``; each substep turns it into map-frame joint velocities with the
         heading halfway through the substep, so a constant command drives a circular
-        arc. VELOCITY_CONTROL motors with a finite force (``motor_force_factor`` times
-        what the acceleration limit needs) drive the joints, so an obstacle pushes back.
+        arc. VELOCITY_CONTROL motors drive the joints (:func:`motor_limits`): the x and y
+        motors with a finite force, so an obstacle pushes back, the yaw motor with
+        enough torque that no contact turns the robot; contacts are frictionless, so the
+        robot slides along what it touches.
         The pybullet calls are bound once per tick and a substep without any contact
         point skips the contact bookkeeping.
         """
