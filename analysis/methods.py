@@ -130,9 +130,10 @@ DEVIATIONS: tuple[Deviation, ...] = (
     Deviation(
         "Contextual mode: yielding",
         ("contextual_task",),
-        "When the safety layer must scale the blended command below half and the user's own "
-        "command is freer, the contextual mode yields (beta = 0, the user's safe command), "
-        "so that a blocked assistance never holds the robot against the user (not in the "
+        "Whenever the safety layer must slow the blended command and the user's own "
+        "command, checked alike, gets further along the user's input, the contextual mode "
+        "yields for that tick (beta = 0, the user's safe command), so that the assistance "
+        "never holds the robot back where the user's command would pass (not in the "
         "thesis; the safety layer itself is Sec. 7.6.1.2, footnote 31).",
     ),
     Deviation(

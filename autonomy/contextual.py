@@ -49,8 +49,12 @@ class ContextualSettings:
     tracking: TrackingSettings = field(default_factory=TrackingSettings)
     safety_horizon_s: float = 1.0  # [s] the safety layer's horizon
     # the assistance yields (beta = 0, v = the user's safe command) when the safety layer
-    # must scale the blended command below this and the user's own command is freer
-    yield_below_scale: float = 0.5
+    # must scale the blended command below this (1: whenever it slows it at all) and the
+    # user's own command is freer
+    yield_below_scale: float = 1.0
+    # freer: the user's safe command gets further along the user's translational input
+    # than the safe blend; False: its safety scale is larger (the rule before issue 19)
+    yield_by_progress: bool = True
 
     def __post_init__(self) -> None:
         ybs = self.yield_below_scale
@@ -58,6 +62,11 @@ class ContextualSettings:
             raise ValueError(
                 "contextual_task setting yield_below_scale: must be a number in [0, 1], got "
                 f"{self.yield_below_scale!r}"
+            )
+        if not isinstance(self.yield_by_progress, bool):
+            raise ValueError(
+                "contextual_task setting yield_by_progress: must be true or false, got "
+                f"{self.yield_by_progress!r}"
             )
         for name in ("candidates", "rollout_steps", "gmr_k"):
             value = getattr(self, name)
@@ -365,6 +374,12 @@ def _runtime_for(settings: ContextualSettings) -> Runtime | None:
     return runtime
 
 
+def _progress(v: np.ndarray, u: np.ndarray) -> float:
+    """Speed [m/s] of the command ``v`` (3,) along the translational input of ``u`` (3,),
+    which is not zero (the mode assists only above ``min_input``)."""
+    return (v[0] * u[0] + v[1] * u[1]) / math.hypot(u[0], u[1])
+
+
 class ContextualTaskMode:
     """The contextual-task aware mode (see the module docstring)."""
 
@@ -432,9 +447,14 @@ class ContextualTaskMode:
         s, robot = self.settings, self.robot_
         v, scale = safe_command(v, points, robot, horizon_s=s.safety_horizon_s)
         if beta > 0.0 and scale < s.yield_below_scale:
-            # blocked assistance must not hold the robot against the user's will
+            # an assistance the safety layer must slow may not hold the robot back where
+            # the user's own command, checked alike, gets further (docs/decisions.md)
             v_user, scale_user = safe_command(u, points, robot, horizon_s=s.safety_horizon_s)
-            if scale_user > scale:
+            if s.yield_by_progress:
+                freer = _progress(v_user, u) > _progress(v, u)
+            else:
+                freer = scale_user > scale
+            if freer:
                 v, beta = v_user, 0.0
         return v, beta
 

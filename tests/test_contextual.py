@@ -27,7 +27,7 @@ from autonomy.sogp_classifier import recognise
 from autonomy.tracking import track
 from autonomy.training import TrainSettings, synthetic_demonstrations, train
 from autonomy.types import RobotModel
-from sim.testing import cluttered_segments, synthetic_observation
+from sim.testing import box_segments, cluttered_segments, synthetic_observation
 from sim.types import SemanticComponent
 
 sys.path.insert(0, str(Path(__file__).parent))
@@ -229,10 +229,83 @@ def test_a_missing_model_file_is_named(tmp_path):
         ContextualTaskMode(ContextualSettings(model_path=str(tmp_path / "missing.npz")))
 
 
+def _doorway_frame(ahead: float, width: float = 0.75) -> np.ndarray:
+    """Points of a wall across x with a centred doorway ``width`` [m] wide, its near face
+    ``ahead`` [m] in front of the footprint, as the scanners see it."""
+    x, y = 0.3 + ahead + 0.05, width / 2
+    walls = np.concatenate(
+        [box_segments((x, y + 2.0), (0.1, 4.0)), box_segments((x, -y - 2.0), (0.1, 4.0))]
+    )
+    return synthetic_observation(walls, velocity=np.zeros(3)).points
+
+
+def _along(v: np.ndarray, u: np.ndarray) -> float:
+    return float(v[:2] @ u[:2]) / math.hypot(u[0], u[1])
+
+
+def test_a_slowed_assistance_gives_way_to_a_user_who_gets_further():
+    """Issue 19: centred 0.6 m before a 0.75 m doorway with the stick straight ahead (the
+    safety layer leaves it whole), a blend turning into the frame is slowed by the safety
+    layer: the mode yields, where the rule before issue 19 (below half the scale, scales
+    compared) kept turning the robot off the doorway's axis until both were blocked."""
+    points = _doorway_frame(0.6)
+    u, blend = np.array([1.0, 0.0, 0.0]), np.array([0.65, -0.05, -0.2])
+    new = ContextualTaskMode(ContextualSettings(model_path=""))
+    old = ContextualTaskMode(
+        ContextualSettings(model_path="", yield_below_scale=0.5, yield_by_progress=False)
+    )
+    for m in (new, old):
+        m.reset(ROBOT)
+    v, beta = new._safe(blend, u, 0.6, points)
+    assert beta == 0.0
+    np.testing.assert_array_equal(v, u)
+    v_old, beta_old = old._safe(blend, u, 0.6, points)
+    assert beta_old == 0.6
+    np.testing.assert_array_equal(v_old, safe_command(blend, points, ROBOT)[0])
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    scene=st.integers(0, 2**32 - 1),
+    u=st.tuples(st.floats(-1, 1), st.floats(-1, 1), st.floats(-1.2, 1.2)),
+    g=st.tuples(st.floats(-1, 1), st.floats(-1, 1), st.floats(-1.2, 1.2)),
+    beta=st.floats(0.0, 1.0),
+)
+def test_where_the_safety_layer_slows_the_assistance_the_user_gets_as_far(scene, u, g, beta):
+    """Any scene, input and assistance: the command is the safe blend, or the user's safe
+    command with beta 0; where the safety layer slows the blend, the robot gets at least
+    as far along the user's input as the user's own command would."""
+    u, g = np.array(u), np.array(g)
+    if math.hypot(u[0], u[1]) < 0.05:
+        return  # the mode does not assist
+    rng = np.random.default_rng(scene)
+    segments = cluttered_segments(rng, ROBOT, n_boxes=int(rng.integers(0, 12)), room=(5.0, 4.0))
+    points = synthetic_observation(segments, velocity=np.zeros(3), rng=rng).points
+    m = ContextualTaskMode(ContextualSettings(model_path=""))
+    m.reset(ROBOT)
+    blend = (1 - beta) * u + beta * g
+    v, out_beta = m._safe(blend, u, beta, points)
+    safe_blend, scale = safe_command(blend, points, ROBOT)
+    safe_user = safe_command(u, points, ROBOT)[0]
+    if out_beta == beta:
+        np.testing.assert_array_equal(v, safe_blend)
+    else:
+        assert out_beta == 0.0
+        np.testing.assert_array_equal(v, safe_user)
+    if beta > 0 and scale < 1.0:
+        assert _along(v, u) >= _along(safe_user, u) - 1e-12
+
+
 def test_settings_are_validated():
     with pytest.raises(ValueError, match="candidates"):
         ContextualSettings(candidates=0)
-    for bad in ({"em_tol": -1.0}, {"em_tol": float("nan")}, {"em_max_iter": 0}):
+    for bad in (
+        {"em_tol": -1.0},
+        {"em_tol": float("nan")},
+        {"em_max_iter": 0},
+        {"yield_below_scale": 1.5},
+        {"yield_by_progress": 1},
+    ):
         with pytest.raises(ValueError, match=next(iter(bad))):
             ContextualSettings(**bad)
     with pytest.raises(ValueError, match="unknown setting"):

@@ -16,6 +16,7 @@ from sim.semantics.passages import (
     DEPTH_STEP_M,
     MAX_PASSAGE_DEPTH_M,
     MERGE_DISTANCE_M,
+    passage_extent,
 )
 from sim.semantics.robot_frame import (
     RobotFrameComponents,
@@ -35,6 +36,7 @@ __all__ = [
     "derive_components",
     "in_robot_frame",
     "nearest_components",
+    "passage_extent",
     "target_distances",
     "target_points",
 ]

@@ -21,7 +21,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from sim.scenario import Scenario
-from sim.semantics.outlines import _EPS_M, _any_hit, _clearance, _closest_points, _Shape
+from sim.semantics.outlines import (
+    _EPS_M,
+    _any_hit,
+    _clearance,
+    _closest_points,
+    _Shape,
+    _shapes,
+)
+from sim.types import SemanticComponent
 
 MERGE_DISTANCE_M = 0.75  # Alg. 5: passages with closer centres are one passage
 MAX_PASSAGE_DEPTH_M = 0.7  # a constriction deeper than this is a corridor [m]
@@ -51,31 +59,57 @@ def _crossing_normal(ends: np.ndarray) -> np.ndarray:
     return n
 
 
-def _passage_depth(shapes: Sequence[_Shape], centre: np.ndarray, ends: np.ndarray) -> float:
-    """How far [m] along the crossing normal the opening stays hemmed in on both sides.
-
-    Probe lines parallel to the passage at offsets of ``DEPTH_STEP_M`` along the
-    normal, reaching ``width / 2 + CORRIDOR_PROBE_SLACK_M`` each way from the axis;
-    the depth is the run of offsets around the passage where both halves hit an
-    obstacle (grazing counts). Stops once the depth exceeds ``MAX_PASSAGE_DEPTH_M``.
-    """
+def _side_steps(
+    shapes: Sequence[_Shape], centre: np.ndarray, ends: np.ndarray, side: float, cap: int
+) -> int:
+    """Probe lines parallel to the passage, ``DEPTH_STEP_M`` apart along the crossing
+    normal on ``side`` (+1 or -1 times ``ends``' left normal), reaching ``width / 2 +
+    CORRIDOR_PROBE_SLACK_M`` each way from the axis: how many in a row from the passage
+    find an obstacle in both halves (grazing counts), at most ``cap``."""
     along = (ends[1] - ends[0]) / np.hypot(*(ends[1] - ends[0]))
     normal = np.array([-along[1], along[0]])
     reach = np.hypot(*(ends[1] - ends[0])) / 2 + CORRIDOR_PROBE_SLACK_M
-    limit = round(MAX_PASSAGE_DEPTH_M / DEPTH_STEP_M)  # count steps: no float drift
     steps = 0
-    for side in (1.0, -1.0):
-        k = 1
-        while steps <= limit:
-            origin = centre + side * k * DEPTH_STEP_M * normal
-            if not (
-                _any_hit(shapes, origin, origin + reach * along, margin=_EPS_M)
-                and _any_hit(shapes, origin, origin - reach * along, margin=_EPS_M)
-            ):
-                break  # the space widens here
-            k += 1
-            steps += 1
+    while steps < cap:
+        origin = centre + side * (steps + 1) * DEPTH_STEP_M * normal
+        if not (
+            _any_hit(shapes, origin, origin + reach * along, margin=_EPS_M)
+            and _any_hit(shapes, origin, origin - reach * along, margin=_EPS_M)
+        ):
+            break  # the space widens here
+        steps += 1
+    return steps
+
+
+def _passage_depth(shapes: Sequence[_Shape], centre: np.ndarray, ends: np.ndarray) -> float:
+    """How far [m] along the crossing normal the opening stays hemmed in on both sides:
+    the runs of :func:`_side_steps` on the two sides together. Stops once the depth
+    exceeds ``MAX_PASSAGE_DEPTH_M``."""
+    limit = round(MAX_PASSAGE_DEPTH_M / DEPTH_STEP_M)  # count steps: no float drift
+    steps = _side_steps(shapes, centre, ends, 1.0, limit + 1)
+    steps += _side_steps(shapes, centre, ends, -1.0, limit + 1 - steps)
     return steps * DEPTH_STEP_M
+
+
+def passage_extent(scenario: Scenario, component: SemanticComponent) -> tuple[float, float]:
+    """How far [m] a doorway or gap stays hemmed in behind and ahead of its centre along
+    its crossing normal (``component.normal``, map frame): beyond ``centre + ahead *
+    normal`` the space widens (to ``DEPTH_STEP_M``; the probes of :func:`_passage_depth`).
+    A footprint whose rear is past that line is through the passage."""
+    if component.kind not in ("doorway", "gap"):
+        raise ValueError(
+            f"passage_extent: component {component.id!r} is a {component.kind}, not a "
+            "doorway or gap"
+        )
+    shapes = _shapes(scenario)
+    ends = np.asarray(component.ends, dtype=float)
+    centre = np.asarray(component.centre, dtype=float)
+    left = np.array([-(ends[1] - ends[0])[1], (ends[1] - ends[0])[0]])
+    sign = 1.0 if float(left @ np.asarray(component.normal)) >= 0 else -1.0
+    cap = 10 * round(MAX_PASSAGE_DEPTH_M / DEPTH_STEP_M)
+    behind = _side_steps(shapes, centre, ends, -sign, cap) + 1
+    ahead = _side_steps(shapes, centre, ends, sign, cap) + 1
+    return round(behind * DEPTH_STEP_M, 9), round(ahead * DEPTH_STEP_M, 9)
 
 
 def _traversable(
