@@ -85,6 +85,9 @@ class TrialSpec:
     end_on_collision: bool = False
     feedback: str = ""  # shown on the screen from the start (practice)
     camera_hz: float = 0.0  # [Hz] camera frames in the recording; 0: none
+    # the time limit is the trial's planned length (training), so reaching it completes
+    # the trial; otherwise a trial that reaches it ends "timed_out"
+    limit_is_duration: bool = False
 
     def __post_init__(self) -> None:
         # a trial must be able to end: by its driving task (which times out) or, for the
@@ -105,7 +108,7 @@ class TrialResult:
     """How a trial ended."""
 
     trial_id: int
-    status: str  # "completed" or "aborted"
+    status: str  # "completed", "timed_out" or "aborted" (storage.TRIAL_STATUSES)
     outcome: dict[str, Any]  # as stored in trial.outcome
     ticks: int
     duration_s: float  # [s] simulated
@@ -419,11 +422,19 @@ class TrialLoop:
         except Exception:  # the database itself failed; resume aborts the trial
             pass
 
+    def _end_status(self) -> str:
+        """``aborted``, ``timed_out`` (the driving task reached its time limit, unless the
+        limit is the trial's planned length) or ``completed``."""
+        primary = self.primary
+        if self.status == "completed" and primary is not None and primary.timed_out:
+            return "completed" if self.spec.limit_is_duration else "timed_out"
+        return self.status
+
     def _finish(self) -> TrialResult:
         """The outcome, status and last rows in one transaction; then ``end_trial``."""
         assert self.sink is not None  # made by run()
         self.sink.close_questions()  # shown, never resolved
-        tick, t, status = self.tick, self.t, self.status
+        tick, t, status = self.tick, self.t, self._end_status()
         outcome: dict[str, Any] = {"ticks": tick, "duration_s": t}
         values: dict[str, Any] = {"status": status, "tick_jitter_ms": self.clock.jitter_p99_ms()}
         if self.primary is not None:
