@@ -314,8 +314,8 @@ def test_recording_logs_the_camera_image_the_screen_showed(tmp_path, person_fact
     shown: list[np.ndarray] = []
 
     class Watching(HumanParticipant):
-        def camera_image(self):
-            image = super().camera_image()
+        def camera_image(self, which="front"):
+            image = super().camera_image(which)
             if image is not None:
                 shown.append(image.copy())
             return image
@@ -327,5 +327,6 @@ def test_recording_logs_the_camera_image_the_screen_showed(tmp_path, person_fact
     engine.dispose()
     summary = recording_summary(tmp_path / "rec" / f"trial_{result.trial_id}.rrd")
     rows = summary["entities"].get("camera/image", {}).get("rows", 0)
-    # 2 Hz over 2 s: the frames came from the screen's feed, none rendered by the loop
-    assert len(shown) == 4 and rows == len(shown)
+    # about 2 Hz over 2 s (from the feed's first image on): the frames came from the
+    # screen's feed, none rendered by the loop
+    assert 3 <= len(shown) <= 5 and rows == len(shown)

@@ -138,7 +138,6 @@ def _on_screen(
             force=force,
             progress=progress,
             clock=FreeClock() if fast else person.clock(),
-            camera_hz=2.0,  # the image on the screen (HumanParticipant.camera_image)
             on_tick=on_tick,
         )
     finally:

@@ -24,6 +24,7 @@ from sim.occupancy import build_grid
 from sim.scenario import load_scenario
 from sim.semantics import derive_components
 from sim.world import World
+from study.data.recording import RecorderSettings
 from study.data.storage import (
     TRIAL_FINISHED,
     Event,
@@ -159,6 +160,10 @@ class SessionRunner:
         self.control = control
         self.clock = clock
         self.camera_hz = camera_hz
+        rec = protocol.recording
+        self.recording = RecorderSettings(
+            camera_width_px=rec.camera_width, jpeg_quality=rec.jpeg_quality
+        )
         self.on_tick = on_tick
         db_path = database_file(db)
         self.folder = db_path.parent
@@ -272,6 +277,8 @@ class SessionRunner:
             seed=derive_seed(self.seed, _PHASE_INDEX[phase], ordinal, attempt),
             instruction=self._instruction(phase),
             camera_hz=self.camera_hz,
+            camera_views=("front", "tail") if self.protocol.ui.layout == "laser" else ("front",),
+            recording=self.recording,
             **fields,
         )
 

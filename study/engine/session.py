@@ -309,8 +309,9 @@ def run_session(
         Receives one experimenter line per phase and trial; the experimenter's pause and
         abort (:class:`study.engine.clocks.ExperimenterControl`).
     clock, camera_hz : optional
-        Default for human participants a wall-clock pace and 2 camera frames per second
-        in the recordings; else free-running and none.
+        Default for human participants a wall-clock pace, else free-running; camera
+        frames per second in the recordings, default the protocol's
+        ``[recording] camera_hz``.
     on_tick : callable, optional
         Passed to :func:`study.engine.trial.run_trial`.
     recordings : str or Path, optional
@@ -370,7 +371,7 @@ def _runner(
         progress=progress if progress is not None else (lambda line: None),
         control=control if control is not None else ExperimenterControl(),
         clock=clock if clock is not None else (WallClock() if human else FreeClock()),
-        camera_hz=camera_hz if camera_hz is not None else (2.0 if human else 0.0),
+        camera_hz=camera_hz if camera_hz is not None else protocol.recording.camera_hz,
         on_tick=on_tick,
         recordings=Path(recordings).resolve() if recordings is not None else None,
     )
