@@ -28,6 +28,7 @@ from study.data.storage import (
 )
 from study.engine.counterbalance import assign_indexed, cycle_length
 from study.engine.protocol import Protocol
+from study.engine.resume import resume_plan, session_state
 from study.engine.runner import SessionRunner, TrialSummary, derive_seed
 from study.engine.trial import ExperimenterControl, FreeClock, TrialWriter, WallClock
 from study.participants.base import Participant as SessionParticipant
@@ -384,6 +385,11 @@ def _run(runner: SessionRunner, code: str, opened: _Opened) -> SessionSummary:
         + (" resumed" if opened.resumed else "")
         + (" (forced)" if opened.forced else "")
         + f", order index {opened.person.order_index}"
+        + (
+            f": {resume_plan(session_state(runner.engine, opened.session_id))}"
+            if opened.resumed
+            else ""
+        )
     )
     try:
         status = runner.run()

@@ -145,8 +145,11 @@ class TrialLoop:
 
     Everything that can fail on bad input (the tasks' settings) is built before the trial
     row is written with status ``running``; :meth:`run` then runs the ticks, and an
-    exception inside them (or Ctrl-C) stores what is buffered and marks the trial
-    ``aborted`` with the reason before it propagates.
+    exception inside them (or ``KeyboardInterrupt``) stores what is buffered and marks the
+    trial ``aborted`` with the reason before it propagates. An abort asked of the
+    ``control`` (Ctrl-C under :func:`study.engine.clocks.sigint_aborts`, which sees
+    ``control.ticking``) ends the trial after the current tick, stored ``aborted`` with
+    its outcome.
     """
 
     def __init__(
@@ -221,7 +224,11 @@ class TrialLoop:
             )
             self.sink = EventSink(self.writer, recorder)
             self._begin()
-            self._loop()
+            self.control.ticking = True
+            try:
+                self._loop()
+            finally:
+                self.control.ticking = False
         except BaseException as exc:
             # keep what was buffered and leave no ``running`` row behind; a resumed
             # session runs the trial again
@@ -426,11 +433,10 @@ class TrialLoop:
 
     def _abort(self, exc: BaseException) -> None:
         """After an exception: store the buffered rows, the trial ``aborted`` (best effort)."""
-        reason = (
-            "interrupted"
-            if isinstance(exc, KeyboardInterrupt)
-            else f"error: {type(exc).__name__}: {exc}"
-        )
+        if isinstance(exc, KeyboardInterrupt):  # Ctrl-C, the window closed: say which
+            reason = f"interrupted: {exc}" if str(exc) else "interrupted"
+        else:
+            reason = f"error: {type(exc).__name__}: {exc}"
         if self.sink is not None:
             self.sink.close_questions()
         try:
