@@ -62,7 +62,9 @@ SCREEN_STATUS_EVERY_S = 1.0  # [s] wall time between the screen's status lines
     default=None,
     help="Participant seed (default: derived from the study seed and the code).",
 )
-@click.option("--resume", is_flag=True, help="Continue this participant's session after a crash.")
+@click.option(
+    "--resume", is_flag=True, help="Continue this participant's session after a crash or Ctrl-C."
+)
 @click.option(
     "--force",
     is_flag=True,
@@ -95,6 +97,10 @@ def run(
     fast: bool,
 ) -> None:
     """Run one participant through every phase of a protocol and store it in --db.
+
+    One line per trial (completed, timed out or aborted) and one live status line.
+    Ctrl-C stops the session cleanly (the running trial is stored as aborted) and
+    prints the --resume command that continues it.
 
     \b
     Example:
