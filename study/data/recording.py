@@ -5,7 +5,8 @@ and ``v`` as arrows, ``beta`` and the recognition scores as time series, the pre
 trajectory, the recognised target, camera frames (front, and tail when the screen shows
 it) as JPEG at a low rate, and the secondary task's questions and events as text
 (DESIGN.md "Data"; issues 4, 19). Each trial has its own ``rr.RecordingStream``; entity
-paths are the constants of :data:`ENTITY`; modes return their diagnostics and the session
+paths are the constants of :data:`ENTITY` (with the static scene in
+:mod:`study.data.recording_scene`); modes return their diagnostics and the session
 engine hands them to :meth:`TrialRecorder.tick`. Everything per tick is buffered and sent
 in few large chunks (:class:`RecorderSettings`). Reading back, verifying and viewing:
 :mod:`study.data.rrd`.
@@ -25,62 +26,12 @@ import numpy as np
 import rerun as rr
 
 from sim.occupancy import OccupancyGrid
-from sim.scenario import Box, Scenario
-from sim.types import COMPONENT_KINDS, SemanticComponent
+from sim.scenario import Scenario
+from sim.types import SemanticComponent
+from study.data.recording_scene import COLOURS, ENTITY, component_points, log_static
 
 TIMELINE = "sim_time"  # duration timeline [s] of simulated trial time
 RECORDING_NAMESPACE = uuid.UUID("5d1b7c0e-6f3a-4c1e-9a57-8a9d2f0e4b21")  # recording ids
-
-
-@dataclass(frozen=True, slots=True)
-class _Entities:
-    """Every entity path of a trial recording, in one place."""
-
-    world: str = "world"
-    map: str = "world/map"  # occupancy image, static
-    obstacles: str = "world/obstacles"  # outlines of walls, boxes, cylinders, tables, static
-    components: str = "world/components"  # + /<kind>: semantic components, static
-    question_region: str = "world/question_region"  # static polygon
-    robot: str = "world/robot"  # pose transform (true pose), per tick
-    footprint: str = "world/robot/footprint"  # static, robot frame
-    laser: str = "world/robot/laser"  # hits, robot frame, laser_hz
-    u: str = "world/robot/u"  # joystick command arrow, robot frame
-    v: str = "world/robot/v"  # command sent to the robot, robot frame
-    predicted_path: str = "world/predicted_path"  # map frame
-    target: str = "world/target"  # recognised component, on change
-    camera: str = "camera/image"  # front camera, JPEG, when given
-    tail_camera: str = "camera/tail"  # tail camera (layout "laser"), JPEG, when given
-    beta: str = "plots/beta"
-    scores: str = "plots/scores"  # + /<candidate or situation>
-    questions: str = "secondary/questions"  # TextLog
-    events: str = "events"  # TextLog: collisions, dock, inspection, ...
-
-    def component(self, kind: str) -> str:
-        return f"{self.components}/{rr.escape_entity_path_part(kind)}"
-
-    def score(self, key: str) -> str:
-        return f"{self.scores}/{rr.escape_entity_path_part(key)}"
-
-
-ENTITY = _Entities()
-
-# Thesis colours (Fig. 7.26, 7.29, 7.49), as study.jobs.scene_plot.COLOURS; repeated here so
-# recording does not import matplotlib.
-COLOURS: dict[str, tuple[int, int, int]] = {
-    "doorway": (214, 39, 40),
-    "gap": (255, 127, 14),
-    "dock": (44, 160, 44),
-    "object": (31, 79, 214),
-    "wall": (138, 43, 226),
-    "obstacle": (64, 64, 64),
-    "region": (59, 125, 216),
-    "robot": (20, 20, 20),
-    "laser": (230, 20, 20),
-    "u": (120, 120, 120),
-    "v": (0, 150, 60),
-    "path": (0, 170, 200),
-    "target": (230, 0, 126),
-}
 _EPS_S = 1e-9  # [s] rounding tolerance of the rate schedules
 _EVENT_LEVELS = {"collision": "WARN", "abort": "ERROR", "timeout": "WARN"}
 
@@ -167,26 +118,6 @@ def _jpeg(frame: np.ndarray, width_px: int, quality: int) -> bytes:
     return out.getvalue()
 
 
-def _closed(points: np.ndarray) -> np.ndarray:
-    p = np.asarray(points, dtype=float).reshape(-1, 2)
-    return np.vstack((p, p[:1])) if len(p) else p
-
-
-def _circle(centre: Sequence[float], radius: float, n: int = 24) -> np.ndarray:
-    a = np.linspace(0.0, 2 * math.pi, n + 1)
-    return np.column_stack((centre[0] + radius * np.cos(a), centre[1] + radius * np.sin(a)))
-
-
-def _component_points(c: SemanticComponent) -> np.ndarray:
-    """Map-frame points that show a component (k, 2) [m]."""
-    parts = [np.asarray(c.centre, dtype=float).reshape(1, 2)]
-    if len(c.points):
-        parts = [np.asarray(c.points, dtype=float).reshape(-1, 2)]
-    elif len(c.ends):
-        parts.append(np.asarray(c.ends, dtype=float).reshape(-1, 2))
-    return np.vstack(parts)
-
-
 class TrialRecorder:
     """Writes one trial to a rerun ``.rrd`` file.
 
@@ -249,105 +180,7 @@ class TrialRecorder:
         self._laser_pose: tuple[float, float, float] | None = None  # last scan logged here
         self._camera_pose: tuple[float, float, float] | None = None  # last frame logged here
         self._reset_buffers()
-        self._log_static(scenario, components, grid)
-
-    # -------------------------------------------------------------- static scene
-
-    def _log_static(
-        self, scenario: Scenario, components: Sequence[SemanticComponent], grid: OccupancyGrid
-    ) -> None:
-        self._rec.log(ENTITY.world, rr.Transform3D(scale=[1.0, -1.0, 1.0]), static=True)
-        self._log_map(grid)
-        self._log_obstacles(scenario)
-        for kind in COMPONENT_KINDS:
-            of_kind = [c for c in components if c.kind == kind]
-            if of_kind:
-                self._log_components(kind, of_kind)
-        if len(scenario.question_region):
-            self._rec.log(
-                ENTITY.question_region,
-                rr.LineStrips2D(
-                    [_closed(scenario.question_region)],
-                    labels=["question region"],
-                    colors=COLOURS["region"],
-                ),
-                static=True,
-            )
-        # styles of the per-tick entities, static so the columns carry only the data
-        for entity, style in (
-            (ENTITY.u, rr.Arrows2D.from_fields(colors=COLOURS["u"], radii=0.02)),
-            (ENTITY.v, rr.Arrows2D.from_fields(colors=COLOURS["v"], radii=0.025)),
-            (ENTITY.laser, rr.Points2D.from_fields(colors=COLOURS["laser"], radii=0.02)),
-            (ENTITY.predicted_path, rr.LineStrips2D.from_fields(colors=COLOURS["path"])),
-            (ENTITY.target, rr.Points2D.from_fields(colors=COLOURS["target"], radii=0.08)),
-        ):
-            self._rec.log(entity, style, static=True)
-        self._rec.log(
-            ENTITY.footprint,
-            rr.LineStrips2D([_closed(scenario.robot.footprint())], colors=COLOURS["robot"]),
-            static=True,
-        )
-
-    def _log_map(self, grid: OccupancyGrid) -> None:
-        # occupancy image: pixel (u, v) -> map (x0 + u res, y_max - v res); row 0 = top
-        image = np.where(grid.occupied, 60, 235).astype(np.uint8)[::-1]
-        x0, _, _, y_max = grid.extent()
-        self._rec.log(
-            ENTITY.map,
-            rr.Transform3D(
-                translation=[x0, y_max, 0.0], scale=[grid.resolution, -grid.resolution, 1.0]
-            ),
-            rr.Image(image, color_model="L", draw_order=-10.0),
-            static=True,
-        )
-
-    def _log_obstacles(self, scenario: Scenario) -> None:
-        strips, names = [], []
-        for box in scenario.walls + scenario.boxes:
-            strips.append(_closed(box.corners()))
-            names.append(box.name)
-        for cyl in scenario.cylinders:
-            strips.append(_circle(cyl.centre, cyl.radius))
-            names.append(cyl.name)
-        for table in scenario.tables:
-            top = Box(table.name, "obstacle", table.centre, table.size, table.yaw, 0, table.colour)
-            strips.append(_closed(top.corners()))
-            names.append(table.name)
-            for leg in table.leg_boxes():
-                strips.append(_closed(leg.corners()))
-                names.append(leg.name)
-        if strips:
-            self._rec.log(
-                ENTITY.obstacles,
-                rr.LineStrips2D(
-                    strips, labels=names, colors=COLOURS["obstacle"], show_labels=False
-                ),
-                static=True,
-            )
-
-    def _log_components(self, kind: str, of_kind: list[SemanticComponent]) -> None:
-        pts = [_component_points(c) for c in of_kind]
-        labels = [c.id for c, p in zip(of_kind, pts, strict=True) for _ in range(len(p))]
-        archetypes: list[Any] = [
-            rr.Points2D(
-                np.vstack(pts),
-                labels=labels,
-                colors=COLOURS[kind],
-                radii=0.04,
-                show_labels=False,
-            )
-        ]
-        passages = [c for c in of_kind if len(c.ends) == 2]
-        if passages:
-            archetypes.append(
-                rr.LineStrips2D(
-                    [np.asarray(c.ends, dtype=float) for c in passages],
-                    labels=[c.id for c in passages],
-                    colors=COLOURS[kind],
-                    radii=0.03,
-                )
-            )
-        self._rec.log(ENTITY.component(kind), *archetypes, static=True)
+        log_static(self._rec, scenario, components, grid)
 
     # -------------------------------------------------------------- per tick
 
@@ -503,7 +336,7 @@ class TrialRecorder:
             # no target, or an id the scene does not know: nothing highlighted
             self._target.append(np.empty((0, 2), dtype=np.float32))
             return
-        pts = _component_points(component).astype(np.float32)
+        pts = component_points(component).astype(np.float32)
         text = f"{target} ({label})" if label else target
         self._target.append(pts)
         self._target_labels += [text] + [""] * (len(pts) - 1)
