@@ -233,7 +233,7 @@ def _counted(main: pd.DataFrame, source: str) -> pd.DataFrame:
     )
     if counted.empty:
         raise ValueError(
-            f"{source}: no finished main trial (table 'trial', phase 'main', status "
+            f"{source}: no completed main trial (table 'trial', phase 'main', status "
             "'completed' or 'timed_out'); nothing to analyse"
         )
     return counted
