@@ -463,13 +463,16 @@ class World:
             components=self._components_seen_from(estimate),
         )
 
-    def camera_image(self, which: str = "front") -> np.ndarray:
+    def camera_image(self, which: str = "front", *, width_px: int | None = None) -> np.ndarray:
         """Render one of the robot's cameras from the true pose.
 
         Parameters
         ----------
         which : "front" (``robot.camera``) or "tail" (``robot.tail_camera``, looking back;
             thesis Sec. 7.5, Fig. 7.42).
+        width_px : int, optional
+            Render this many pixels wide instead (the height keeps the camera's aspect):
+            a smaller image costs less to render.
 
         Returns
         -------
@@ -494,9 +497,12 @@ class World:
         projection = p.computeProjectionMatrixFOV(
             math.degrees(cam.fov), cam.width / cam.height_px, _CAMERA_NEAR_M, cam.far, **self._pb
         )
+        width, height = cam.width, cam.height_px
+        if width_px is not None:
+            width, height = int(width_px), max(1, round(cam.height_px * width_px / cam.width))
         _, _, rgba, _, _ = p.getCameraImage(
-            cam.width,
-            cam.height_px,
+            width,
+            height,
             view,
             projection,
             shadow=0,
@@ -504,7 +510,7 @@ class World:
             flags=p.ER_NO_SEGMENTATION_MASK,
             **self._pb,
         )
-        image = np.asarray(rgba, dtype=np.uint8).reshape(cam.height_px, cam.width, 4)
+        image = np.asarray(rgba, dtype=np.uint8).reshape(height, width, 4)
         return image[:, :, :3].copy()
 
     # ------------------------------------------------------------------ lifetime

@@ -125,6 +125,16 @@ def test_ui_layout_defaults_to_the_map_and_is_validated():
         parse_protocol(bad, "p.toml", known_modes=KNOWN)
 
 
+def test_recording_camera_defaults_and_settings():
+    text = shipped_text("pilot")
+    assert load_protocol("pilot", known_modes=KNOWN).recording.camera_hz == 2.0  # DESIGN.md
+    custom = text + "\n[recording]\ncamera_hz = 5\ncamera_width = 320\njpeg_quality = 90\n"
+    rec = parse_protocol(custom, "p.toml", known_modes=KNOWN).recording
+    assert (rec.camera_hz, rec.camera_width, rec.jpeg_quality) == (5.0, 320, 90)
+    off = parse_protocol(text + "\n[recording]\ncamera_hz = 0\n", "p.toml", known_modes=KNOWN)
+    assert off.recording.camera_hz == 0.0
+
+
 def test_pilot_protocol_is_short():
     p = load_protocol("pilot", known_modes=KNOWN)
     thesis = load_protocol("thesis-7-6", known_modes=KNOWN)
@@ -223,6 +233,11 @@ BAD = [
     ("show_map = true", "show_map = true\n[ui.instructions]\nmian = 'x'", "ui.instructions.mian"),
     ("show_map = true", "show_map = true\n[input.axes]\nvx = 0", "input.axes.vy"),
     ("show_map = true", "show_map = true\n[input]\ndeadzone = 1.0", "input.deadzone"),
+    ("show_map = true", "show_map = true\n[recording]\ncamera_hz = -2", "recording.camera_hz"),
+    ("show_map = true", "show_map = true\n[recording]\ncamera_hz = 25", "recording.camera_hz"),
+    ("show_map = true", "show_map = true\n[recording]\njpeg_quality = 0", "recording.jpeg_quality"),
+    ("show_map = true", "show_map = true\n[recording]\ncamera_width = 8", "recording.camera_width"),
+    ("show_map = true", "show_map = true\n[recording]\nfps = 2", "recording.fps"),
     (
         "[modes]",
         "[modes.settings.reactive_bn]\nno_such_setting = 1\n[modes]",

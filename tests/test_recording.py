@@ -103,20 +103,33 @@ def _record(path, key, scene, rng, *, n=200, t0=0.0, settings=None):
     return expected
 
 
+def _rows_at(span_s: float, hz: float) -> int:
+    """Rows of a stream kept at ``hz`` over ``span_s`` at 20 Hz ticks, the first at t = 0."""
+    return math.floor(span_s * min(hz, 1 / DT) + 1e-9) + 1
+
+
+def _motion_rows(n: int) -> int:
+    """Rows of pose, u, v and beta over ``n`` ticks: every second (10 Hz) and the last."""
+    assert RecorderSettings().motion_hz == 10.0
+    return len(set(range(0, n, 2)) | {n - 1})
+
+
 def test_recording_verifies_and_its_summary_matches_what_went_in(tmp_path, scene, rng):
     path = tmp_path / "trial.rrd"
     n = 200
-    expected = _record(path, "P01/main/0", scene, rng, n=n)
+    # every pose counts as a move, so the laser keeps its rate
+    settings = RecorderSettings(still_m=0.0, still_rad=0.0)
+    expected = _record(path, "P01/main/0", scene, rng, n=n, settings=settings)
     verify(path)
     summary = recording_summary(path)
     rows = {name: counts["rows"] for name, counts in summary["entities"].items()}
-    settings = RecorderSettings()
     span_s = (n - 1) * DT
-    for entity in (ENTITY.robot, ENTITY.u, ENTITY.v, ENTITY.beta, ENTITY.score("FT")):
-        assert rows[entity] == n, entity
     # rate-limited streams: one row per period, the first at t = 0
-    assert rows[ENTITY.laser] == math.floor(span_s * settings.laser_hz + 1e-9) + 1
-    assert rows[ENTITY.predicted_path] == math.floor(span_s * settings.path_hz + 1e-9) + 1
+    for entity in (ENTITY.robot, ENTITY.u, ENTITY.v, ENTITY.beta):
+        assert rows[entity] == _motion_rows(n), entity
+    assert rows[ENTITY.score("FT")] == _rows_at(span_s, settings.scores_hz)
+    assert rows[ENTITY.laser] == _rows_at(span_s, settings.laser_hz)
+    assert rows[ENTITY.predicted_path] == _rows_at(span_s, settings.path_hz)
     assert rows[ENTITY.camera] == expected["camera"]
     assert rows[ENTITY.target] == expected["targets"]
     assert rows[ENTITY.events] == expected["events"]
@@ -219,7 +232,7 @@ def test_two_trials_in_one_process_stay_separate(tmp_path, scene, rng):
         summaries, counts, offsets, ["P01/main/0", "P01/main/1"], strict=True
     ):
         verify(summary["path"])
-        assert summary["entities"][ENTITY.robot]["rows"] == n
+        assert summary["entities"][ENTITY.robot]["rows"] == _motion_rows(n)
         assert summary["time_range_s"] == pytest.approx([t0, t0 + (n - 1) * DT], abs=1e-6)
         assert summary["recording_id"] == str(recording_id(key))
     assert ENTITY.events in summaries[0]["entities"]
@@ -437,3 +450,70 @@ def test_replay_missing_database_is_one_line_exit_2(tmp_path, capsys):
         main(["replay", "--db", str(tmp_path / "none.db"), "--participant", "P01", "--trial", "1"])
     assert exit_info.value.code == 2
     assert len(capsys.readouterr().err.strip().splitlines()) == 1
+
+
+def test_camera_frames_are_small_jpegs_and_a_standstill_logs_no_scans_or_frames(
+    tmp_path, scene, rng
+):
+    import io
+
+    from PIL import Image
+
+    scenario, components, grid = scene
+    settings = RecorderSettings(camera_hz=2.0)
+    path = tmp_path / "camera.rrd"
+    pose, sent = scenario.start, []
+    with TrialRecorder(
+        path, trial_key="c", scenario=scenario, components=components, grid=grid, settings=settings
+    ) as rec:
+        for i in range(120):  # 6 s: driving for the first 3 s, then standing still
+            t = i * DT
+            if i < 60:
+                pose = Pose2D(pose.x + 0.02, pose.y, pose.yaw + 0.001)
+            front = tail = None
+            if rec.camera_due(t, pose):
+                front = rng.integers(0, 255, size=(240, 320, 3), dtype=np.uint8)
+                tail = front[::-1].copy()
+                sent.append(t)
+            points = rng.uniform(-5, 5, size=(540, 2))
+            rec.tick(t, pose, points, np.zeros(3), np.zeros(3), camera=front, tail_camera=tail)
+    verify(path)
+    # 2 Hz while driving (0, 0.5, ..., 3.0: the pose at 3 s is the one it stopped in)
+    assert sent == pytest.approx([0.5 * k for k in range(7)])
+    rows = {name: counts["rows"] for name, counts in recording_summary(path)["entities"].items()}
+    assert rows[ENTITY.camera] == rows[ENTITY.tail_camera] == len(sent)
+    assert rows[ENTITY.laser] == len(sent)  # also 2 Hz, none while standing still
+    _, blobs = _temporal_column(path, ENTITY.camera, "EncodedImage:blob")
+    _, points = _temporal_column(path, ENTITY.laser, "Points2D:positions")
+    image = Image.open(io.BytesIO(bytes(blobs[0][0])))
+    assert image.format == "JPEG" and image.size == (settings.camera_width_px, 120)
+    assert len(points[0]) == len(range(0, 540, settings.laser_stride))
+
+
+def test_replay_print_lists_the_camera_frames_of_a_short_trial(tmp_path, capsys, seed):
+    from study.engine.standalone import standalone_trial
+    from study.participants import ScriptedParticipant
+
+    result, engine = standalone_trial(
+        tmp_path,
+        ScriptedParticipant(np.random.default_rng(seed)),
+        scenario="practice_course",
+        route=("dock",),
+        timeout_s=3.0,
+        seed=seed,
+        camera_hz=2.0,
+        camera_views=("front", "tail"),
+    )
+    engine.dispose()
+    args = ["replay", "--db", str(tmp_path / "trial.db"), "--participant", "T01"]
+    main([*args, "--trial", str(result.trial_id), "--print"])
+    out = capsys.readouterr().out
+    rows = {
+        line.split()[0]: int(line.split()[1])
+        for line in out.splitlines()
+        if line.strip().startswith("camera/")
+    }
+    # 2 Hz while the robot drives (it starts at once): about 6 frames in 3 s, each camera
+    assert 4 <= rows[ENTITY.camera] <= 7 and rows[ENTITY.tail_camera] == rows[ENTITY.camera]
+    n = rows[ENTITY.camera]
+    assert f"camera frames: {ENTITY.camera} {n}, {ENTITY.tail_camera} {n}" in out

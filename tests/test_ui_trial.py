@@ -196,8 +196,9 @@ def test_lost_gamepad_pauses_and_resumes_with_events(tmp_path, person_factory, p
     assert lost.detail["device"] == "asa virtual gamepad"
     assert back.detail["device"] == "pad again"
     assert driver.paused_seen >= 6  # the screen said paused while the pad was away
-    # simulated time froze while paused: the trial still ran its full 2 s of ticks
-    assert result.status == "completed" and rows[-1].t >= 2.0 - 1e-9
+    # simulated time froze while paused: the trial still ran its full 2 s of ticks, to
+    # its time limit
+    assert result.status == "timed_out" and rows[-1].t >= 2.0 - 1e-9
     assert len(rows) == len({r.tick for r in rows})
 
 
@@ -313,8 +314,8 @@ def test_recording_logs_the_camera_image_the_screen_showed(tmp_path, person_fact
     shown: list[np.ndarray] = []
 
     class Watching(HumanParticipant):
-        def camera_image(self):
-            image = super().camera_image()
+        def camera_image(self, which="front"):
+            image = super().camera_image(which)
             if image is not None:
                 shown.append(image.copy())
             return image
@@ -326,5 +327,6 @@ def test_recording_logs_the_camera_image_the_screen_showed(tmp_path, person_fact
     engine.dispose()
     summary = recording_summary(tmp_path / "rec" / f"trial_{result.trial_id}.rrd")
     rows = summary["entities"].get("camera/image", {}).get("rows", 0)
-    # 2 Hz over 2 s: the frames came from the screen's feed, none rendered by the loop
-    assert len(shown) == 4 and rows == len(shown)
+    # about 2 Hz over 2 s (from the feed's first image on): the frames came from the
+    # screen's feed, none rendered by the loop
+    assert 3 <= len(shown) <= 5 and rows == len(shown)

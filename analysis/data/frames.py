@@ -17,6 +17,9 @@ from analysis.data.recognition import per_trial, recognition_counts
 from questionnaires import nasa_tlx
 
 BASELINE = "baseline"
+# trial statuses of a trial that ran to its end (study.data.storage.TRIAL_FINISHED; repeated
+# so that the analysis of a CSV export does not import SQLAlchemy)
+FINISHED: tuple[str, ...] = ("completed", "timed_out")
 
 ASSIST_THRESHOLD = 0.05  # beta above this counts as assisted
 
@@ -221,15 +224,17 @@ def _people(participant: pd.DataFrame) -> pd.DataFrame:
 
 
 def _counted(main: pd.DataFrame, source: str) -> pd.DataFrame:
-    """The completed main trials that count: the last attempt of each (participant, ordinal)."""
-    completed = main[main["status"] == "completed"]
+    """The finished main trials that count (completed or timed out; a database written
+    before ``timed_out`` existed stores a timeout as ``completed``): the last attempt of
+    each (participant, ordinal)."""
+    completed = main[main["status"].isin(FINISHED)]
     counted = completed.sort_values(["participant_id", "ordinal", "attempt", "id"]).drop_duplicates(
         ["participant_id", "ordinal"], keep="last"
     )
     if counted.empty:
         raise ValueError(
             f"{source}: no completed main trial (table 'trial', phase 'main', status "
-            "'completed'); nothing to analyse"
+            "'completed' or 'timed_out'); nothing to analyse"
         )
     return counted
 
@@ -245,7 +250,7 @@ def _aborted(main: pd.DataFrame, counted: pd.DataFrame) -> pd.DataFrame:
             "attempt": not_counted["attempt"].astype(int),
             "status": not_counted["status"],
             "reason": [
-                (o or {}).get("aborted_reason", "") if s != "completed" else "superseded attempt"
+                (o or {}).get("aborted_reason", "") if s not in FINISHED else "superseded attempt"
                 for o, s in zip(not_counted["outcome"], not_counted["status"], strict=True)
             ],
         }
@@ -361,7 +366,7 @@ def _with_sample_metrics(
 def _levels_of_trials(trials: pd.DataFrame, frame: pd.DataFrame) -> dict[int, str]:
     """Trial id -> level: the mode of each counted main trial, BASELINE for the last
     completed baseline block of each participant."""
-    baseline = trials[(trials["phase"] == "baseline") & (trials["status"] == "completed")]
+    baseline = trials[(trials["phase"] == "baseline") & trials["status"].isin(FINISHED)]
     baseline = baseline.sort_values(["participant_id", "attempt", "id"]).drop_duplicates(
         "participant_id", keep="last"
     )

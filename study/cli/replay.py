@@ -28,8 +28,8 @@ import click
     "--print",
     "print_only",
     is_flag=True,
-    help="Print what the recording holds (entities, rows, time range) instead of "
-    "opening the viewer.",
+    help="Print what the recording holds (entities, rows, time range, camera frames) "
+    "instead of opening the viewer.",
 )
 def replay(db: Path, participant: str, trial: int, print_only: bool) -> None:
     """Open the rerun viewer on one trial's recording (rerun's analytics switched off).

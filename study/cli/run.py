@@ -1,10 +1,15 @@
 """``asa run``: one participant's session of a protocol, by a person at the pygame screen,
 or by a scripted or synthetic participant, with or without the screen.
 
-A thin shell over :func:`study.engine.launch.run_participant`; prints one experimenter line per
-phase and trial (participant, phase, mode, simulated time, collisions) to stdout, and while
-a trial runs on the screen a status line every few seconds (participant, phase, mode,
-trial time, collisions, frame rates). The participant's window never shows the mode.
+A thin shell over :func:`study.engine.launch.run_participant` and the experimenter's
+terminal (:mod:`study.cli.terminal`): one line per phase and trial (participant, phase,
+mode, how it ended: completed, timed out or aborted, simulated time, collisions), and while
+a trial runs one live status line (trial time, collisions, screen and camera frame rates),
+rewritten in place on a terminal and printed every 30 s into a log. Ctrl-C stops the
+session cleanly (the trial that runs is stored as aborted), also when started from a script
+with ``&``; then, or after any interruption, the terminal names the trial cut short and
+prints the ``--resume`` command that continues the session. The participant's window never
+shows the mode.
 
 - ``--input human``: the window of :mod:`study.ui` (size and fullscreen from the protocol's
   ``[ui]``), gamepad or keyboard, paced by the wall clock.
@@ -31,30 +36,7 @@ _FLAGS = (
     ("resume=True", "--resume"),
     ("force=True", "--force"),
 )
-
-
-class _Terminal:
-    """The experimenter's status lines: the trial's mode looked up once per trial."""
-
-    def __init__(self, code: str) -> None:
-        self.code = code
-        self.trial_id = -1
-        self.mode = ""
-
-    def on_tick(self, tick: int, writer: Any) -> None:
-        if writer.trial_id == self.trial_id:
-            return
-        from sqlalchemy.orm import Session
-
-        from study.data.storage import Trial
-
-        with Session(writer.engine) as s:
-            row = s.get(Trial, writer.trial_id)
-            self.mode = row.mode if row is not None else ""
-        self.trial_id = writer.trial_id
-
-    def status(self, line: str) -> None:
-        click.echo(f"  {self.code} [mode {self.mode or '-'}] {line}")
+SCREEN_STATUS_EVERY_S = 1.0  # [s] wall time between the screen's status lines
 
 
 @click.command("run")
@@ -80,7 +62,9 @@ class _Terminal:
     default=None,
     help="Participant seed (default: derived from the study seed and the code).",
 )
-@click.option("--resume", is_flag=True, help="Continue this participant's session after a crash.")
+@click.option(
+    "--resume", is_flag=True, help="Continue this participant's session after a crash or Ctrl-C."
+)
 @click.option(
     "--force",
     is_flag=True,
@@ -114,6 +98,10 @@ def run(
 ) -> None:
     """Run one participant through every phase of a protocol and store it in --db.
 
+    One line per trial (completed, timed out or aborted) and one live status line.
+    Ctrl-C stops the session cleanly (the running trial is stored as aborted) and
+    prints the --resume command that continues it.
+
     \b
     Example:
       asa run --protocol pilot --participant P01 --db pilot.db --input human
@@ -122,6 +110,7 @@ def run(
           --headless --snapshots shots/
       asa run --protocol pilot --participant P01 --db pilot.db --resume   # after a crash
     """
+    from study.cli.terminal import ExperimenterTerminal
     from study.engine.launch import run_participant
 
     if input_kind == "human" and headless:
@@ -135,23 +124,43 @@ def run(
         raise ValueError(
             "--input human: SDL_VIDEODRIVER is 'dummy', so no window can open; unset it"
         )
-    terminal = _Terminal(code)
+    terminal = ExperimenterTerminal(code, screen=screen)
+    params = click.get_current_context().params
     try:
         summary = run_participant(
             protocol, code, db, input_kind=input_kind, seed=seed, resume=resume, force=force,
-            headless=headless, snapshots=snapshots, fast=fast,
-            progress=lambda line: click.echo(line), status=terminal.status,
-            on_tick=terminal.on_tick,
+            headless=headless, snapshots=snapshots, fast=fast, progress=terminal.line,
+            status=terminal.status, on_tick=terminal.on_tick,
+            status_every_s=SCREEN_STATUS_EVERY_S,
         )  # fmt: skip
-    except ValueError as error:
-        text = _with_flags(str(error))
-        if text == str(error):
-            raise
-        raise ValueError(text) from error
+    except BaseException as error:
+        terminal.close()
+        if terminal.opened:  # the session exists: say what was cut short, how to go on
+            _interrupted(code, db, params)
+        if isinstance(error, ValueError) and _with_flags(str(error)) != str(error):
+            raise ValueError(_with_flags(str(error))) from error
+        raise
+    terminal.close()
     click.echo(
         f"{summary.participant}: session {summary.session_id} {summary.status}, "
         f"{len(summary.trials)} trials run"
     )
+    if summary.status == "aborted" and _interrupted(code, db, params):
+        raise SystemExit(130)  # as the shell reports a process stopped by Ctrl-C
+
+
+def _interrupted(code: str, db: Path, params: dict[str, Any]) -> bool:
+    """Print the trial cut short and the resume command; True when one was cut short
+    by Ctrl-C or an error (not, e.g., a participant excluded after practice)."""
+    from study.cli.terminal import interruption_lines, resume_command
+    from study.engine.resume import last_session
+
+    state = last_session(db, code)
+    if state is not None and state.status == "aborted" and not state.again:
+        return False  # ended by the protocol (exclusion), not cut short
+    for line in interruption_lines(code, state, resume_command(params)):
+        click.echo(line)
+    return True
 
 
 def _with_flags(message: str) -> str:

@@ -2,11 +2,12 @@
 a trial's recording (``asa replay``).
 
 :func:`check` looks for what the session engine promises (DESIGN.md "Data"; issue 4):
-every completed trial has its samples (one per tick at 20 Hz, contiguous, as many as its
-duration asks, within two ticks), its start and end events, its outcome fields, its
-NASA-TLX answers where the protocol asks for them, and its recording, which passes
-``rerun rrd verify`` (:func:`study.data.rrd.verify_many`); no orphan rows; no trial left
-``running`` outside a ``running`` session. :func:`export` writes one CSV per table:
+every finished trial (completed or timed out) has its samples (one per tick at 20 Hz,
+contiguous, as many as its duration asks, within two ticks), its start and end events,
+its outcome fields, its NASA-TLX answers where the protocol asks for them, and its
+recording, which passes ``rerun rrd verify`` (:func:`study.data.rrd.verify_many`); a
+timed-out trial's task is not completed; no orphan rows; no trial left ``running``
+outside a ``running`` session. :func:`export` writes one CSV per table:
 columns in the table's order, JSON columns as JSON text, times in ISO 8601, NULL empty.
 """
 
@@ -26,6 +27,7 @@ from sqlalchemy.orm import Session
 from questionnaires import nasa_tlx
 from study.data.rrd import verify_many
 from study.data.storage import (
+    TRIAL_FINISHED,
     Base,
     Event,
     Participant,
@@ -150,7 +152,7 @@ def check(db: str | Path, *, verify_recordings: bool = True) -> CheckReport:
                     and session.status != "running"
                 ):
                     problems.append(f"{where}: still running in a session that is {session.status}")
-                if trial.status != "completed":
+                if trial.status not in TRIAL_FINISHED:
                     continue
                 checked += 1
                 if trial.phase == "main":
@@ -191,7 +193,7 @@ def _check_samples(trial: Trial, stats: tuple[Any, ...], where: str, problems: l
     """One sample per tick at 20 Hz, contiguous, as many as the trial's duration asks."""
     n, lo, hi, tmax = stats
     if n == 0:
-        problems.append(f"{where}: completed but has no samples")
+        problems.append(f"{where}: {trial.status} but has no samples")
         return
     if hi - lo + 1 != n:
         problems.append(f"{where}: sample ticks {lo}..{hi} are not contiguous ({n})")
@@ -206,19 +208,21 @@ def _check_samples(trial: Trial, stats: tuple[Any, ...], where: str, problems: l
 
 
 def _check_completed(trial: Trial, kinds: set[str], where: str, problems: list[str]) -> None:
-    """A completed trial's start and end events, ``ended_at`` and outcome fields."""
+    """A finished trial's start and end events, ``ended_at`` and outcome fields."""
     missing_events = {"trial_started", "trial_ended"} - kinds
     if missing_events:
         problems.append(f"{where}: missing events {', '.join(sorted(missing_events))}")
     if trial.ended_at is None:
-        problems.append(f"{where}: completed without ended_at")
+        problems.append(f"{where}: {trial.status} without ended_at")
+    if trial.status == "timed_out" and trial.completed_task:
+        problems.append(f"{where}: timed out, yet its task is stored as completed")
     if trial.phase != "baseline" and (
         trial.completed_task is None
         or trial.completion_time_s is None
         or trial.collisions is None
         or trial.score is None
     ):
-        problems.append(f"{where}: completed without its outcome fields")
+        problems.append(f"{where}: {trial.status} without its outcome fields")
 
 
 def _check_questionnaires(

@@ -2,15 +2,19 @@
 
 The static map and semantic components, the robot pose and footprint, laser hits, ``u``
 and ``v`` as arrows, ``beta`` and the recognition scores as time series, the predicted
-trajectory, the recognised target, camera frames and the secondary task's questions and
-events as text (DESIGN.md "Data"; issue 4). Each trial has its own
-``rr.RecordingStream``; entity paths are the constants of :data:`ENTITY`; modes return
-their diagnostics and the session engine hands them to :meth:`TrialRecorder.tick`.
-Reading back, verifying and viewing: :mod:`study.data.rrd`.
+trajectory, the recognised target, camera frames (front, and tail when the screen shows
+it) as JPEG at a low rate, and the secondary task's questions and events as text
+(DESIGN.md "Data"; issues 4, 19). Each trial has its own ``rr.RecordingStream``; entity
+paths are the constants of :data:`ENTITY` (with the static scene in
+:mod:`study.data.recording_scene`); modes return their diagnostics and the session
+engine hands them to :meth:`TrialRecorder.tick`. Everything per tick is buffered and sent
+in few large chunks (:class:`RecorderSettings`). Reading back, verifying and viewing:
+:mod:`study.data.rrd`.
 """
 
 from __future__ import annotations
 
+import io
 import math
 import uuid
 from collections.abc import Sequence
@@ -22,80 +26,53 @@ import numpy as np
 import rerun as rr
 
 from sim.occupancy import OccupancyGrid
-from sim.scenario import Box, Scenario
-from sim.types import COMPONENT_KINDS, SemanticComponent
+from sim.scenario import Scenario
+from sim.types import SemanticComponent
+from study.data.recording_scene import COLOURS, ENTITY, component_points, log_static
 
 TIMELINE = "sim_time"  # duration timeline [s] of simulated trial time
 RECORDING_NAMESPACE = uuid.UUID("5d1b7c0e-6f3a-4c1e-9a57-8a9d2f0e4b21")  # recording ids
-
-
-@dataclass(frozen=True, slots=True)
-class _Entities:
-    """Every entity path of a trial recording, in one place."""
-
-    world: str = "world"
-    map: str = "world/map"  # occupancy image, static
-    obstacles: str = "world/obstacles"  # outlines of walls, boxes, cylinders, tables, static
-    components: str = "world/components"  # + /<kind>: semantic components, static
-    question_region: str = "world/question_region"  # static polygon
-    robot: str = "world/robot"  # pose transform (true pose), per tick
-    footprint: str = "world/robot/footprint"  # static, robot frame
-    laser: str = "world/robot/laser"  # hits, robot frame, laser_hz
-    u: str = "world/robot/u"  # joystick command arrow, robot frame
-    v: str = "world/robot/v"  # command sent to the robot, robot frame
-    predicted_path: str = "world/predicted_path"  # map frame
-    target: str = "world/target"  # recognised component, on change
-    camera: str = "camera/image"  # when given
-    beta: str = "plots/beta"
-    scores: str = "plots/scores"  # + /<candidate or situation>
-    questions: str = "secondary/questions"  # TextLog
-    events: str = "events"  # TextLog: collisions, dock, inspection, ...
-
-    def component(self, kind: str) -> str:
-        return f"{self.components}/{rr.escape_entity_path_part(kind)}"
-
-    def score(self, key: str) -> str:
-        return f"{self.scores}/{rr.escape_entity_path_part(key)}"
-
-
-ENTITY = _Entities()
-
-# Thesis colours (Fig. 7.26, 7.29, 7.49), as study.jobs.scene_plot.COLOURS; repeated here so
-# recording does not import matplotlib.
-COLOURS: dict[str, tuple[int, int, int]] = {
-    "doorway": (214, 39, 40),
-    "gap": (255, 127, 14),
-    "dock": (44, 160, 44),
-    "object": (31, 79, 214),
-    "wall": (138, 43, 226),
-    "obstacle": (64, 64, 64),
-    "region": (59, 125, 216),
-    "robot": (20, 20, 20),
-    "laser": (230, 20, 20),
-    "u": (120, 120, 120),
-    "v": (0, 150, 60),
-    "path": (0, 170, 200),
-    "target": (230, 0, 126),
-}
 _EPS_S = 1e-9  # [s] rounding tolerance of the rate schedules
 _EVENT_LEVELS = {"collision": "WARN", "abort": "ERROR", "timeout": "WARN"}
 
 
 @dataclass(frozen=True, slots=True)
 class RecorderSettings:
-    """What a :class:`TrialRecorder` logs and how often (change with ``dataclasses.replace``)."""
+    """What a :class:`TrialRecorder` logs and how often (change with ``dataclasses.replace``).
 
-    flush_every_s: float = 5.0  # [s] simulated time between batched send_columns
-    laser_hz: float = 5.0  # [Hz] laser hits; <= 0 disables them
-    path_hz: float = 10.0  # [Hz] predicted path; <= 0 disables it
+    Laser scans and camera frames are skipped while the robot stands still (moved less
+    than ``still_m`` and ``still_rad`` since the last one logged): the scene is static,
+    so they would repeat the last one (the baseline block, pauses).
+    """
+
+    flush_every_s: float = 60.0  # [s] simulated time between batched send_columns
+    motion_hz: float = 10.0  # [Hz] pose, u, v, beta; >= the tick rate: every tick
+    scores_hz: float = 5.0  # [Hz] the recognition scores (one series per candidate)
+    laser_hz: float = 2.0  # [Hz] laser hits; <= 0 disables them
+    laser_stride: int = 4  # every n-th hit of a scan (both lasers: 2 deg apart)
+    path_hz: float = 5.0  # [Hz] predicted path; <= 0 disables it
     arrow_scale_s: float = 1.0  # [s] arrow length = scale * velocity
-    jpeg_quality: int = 80  # camera frames; 0 stores them uncompressed
+    jpeg_quality: int = 75  # camera frames; 0 stores them uncompressed
+    camera_width_px: int = 160  # [px] wider frames are scaled down by a whole factor
+    camera_hz: float = 0.0  # [Hz] frames :meth:`TrialRecorder.camera_due` asks for; 0: none
+    still_m: float = 0.01  # [m] see the class docstring
+    still_rad: float = 0.01  # [rad]
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.flush_every_s) and self.flush_every_s > 0):
             raise ValueError(f"recorder flush_every_s: must be > 0, got {self.flush_every_s!r}")
         if not 0 <= self.jpeg_quality <= 100:
             raise ValueError(f"recorder jpeg_quality: must be in 0..100, got {self.jpeg_quality}")
+        if not all(math.isfinite(hz) and hz > 0 for hz in (self.motion_hz, self.scores_hz)):
+            raise ValueError(
+                f"recorder motion_hz, scores_hz: must be > 0, got {self.motion_hz!r}, "
+                f"{self.scores_hz!r}"
+            )
+        if self.laser_stride < 1 or self.camera_width_px < 1:
+            raise ValueError(
+                f"recorder laser_stride, camera_width_px: must be >= 1, got "
+                f"{self.laser_stride}, {self.camera_width_px}"
+            )
 
 
 def recording_id(trial_key: str) -> uuid.UUID:
@@ -114,24 +91,31 @@ def _next_time(scheduled: float, t: float, rate_hz: float) -> float:
     return due if due > t + _EPS_S else t + period
 
 
-def _closed(points: np.ndarray) -> np.ndarray:
-    p = np.asarray(points, dtype=float).reshape(-1, 2)
-    return np.vstack((p, p[:1])) if len(p) else p
+def _moved(
+    a: tuple[float, float, float] | None, b: tuple[float, float, float], s: RecorderSettings
+) -> bool:
+    """Whether pose ``b`` differs from ``a`` (x [m], y [m], yaw [rad]; ``a`` None: nothing
+    logged yet) by ``s.still_m`` or ``s.still_rad``."""
+    if a is None:
+        return True
+    turn = abs(math.remainder(b[2] - a[2], math.tau))
+    return math.hypot(b[0] - a[0], b[1] - a[1]) >= s.still_m or turn >= s.still_rad
 
 
-def _circle(centre: Sequence[float], radius: float, n: int = 24) -> np.ndarray:
-    a = np.linspace(0.0, 2 * math.pi, n + 1)
-    return np.column_stack((centre[0] + radius * np.cos(a), centre[1] + radius * np.sin(a)))
+def _jpeg(frame: np.ndarray, width_px: int, quality: int) -> bytes:
+    """An RGB frame (h, w, 3) uint8 as JPEG, scaled down by the smallest whole factor that
+    makes it at most ``width_px`` wide (mean over factor x factor blocks)."""
+    from PIL import Image  # rerun's own JPEG path uses Pillow too
 
-
-def _component_points(c: SemanticComponent) -> np.ndarray:
-    """Map-frame points that show a component (k, 2) [m]."""
-    parts = [np.asarray(c.centre, dtype=float).reshape(1, 2)]
-    if len(c.points):
-        parts = [np.asarray(c.points, dtype=float).reshape(-1, 2)]
-    elif len(c.ends):
-        parts.append(np.asarray(c.ends, dtype=float).reshape(-1, 2))
-    return np.vstack(parts)
+    image = np.asarray(frame, dtype=np.uint8)
+    k = -(-image.shape[1] // width_px)  # ceil
+    if k > 1:
+        h, w = image.shape[0] // k * k, image.shape[1] // k * k
+        blocks = image[:h, :w].reshape(h // k, k, w // k, k, -1).mean(axis=(1, 3))
+        image = np.rint(blocks).astype(np.uint8)
+    out = io.BytesIO()
+    Image.fromarray(image).save(out, format="JPEG", quality=quality)
+    return out.getvalue()
 
 
 class TrialRecorder:
@@ -189,106 +173,14 @@ class TrialRecorder:
         self._next_flush = math.nan
         self._next_laser = -math.inf
         self._next_path = -math.inf
+        self._next_camera = -math.inf
+        self._next_motion = -math.inf
+        self._next_scores = -math.inf
+        self._last_motion: tuple[tuple[Any, ...], float | None] | None = None  # not yet kept
+        self._laser_pose: tuple[float, float, float] | None = None  # last scan logged here
+        self._camera_pose: tuple[float, float, float] | None = None  # last frame logged here
         self._reset_buffers()
-        self._log_static(scenario, components, grid)
-
-    # -------------------------------------------------------------- static scene
-
-    def _log_static(
-        self, scenario: Scenario, components: Sequence[SemanticComponent], grid: OccupancyGrid
-    ) -> None:
-        self._rec.log(ENTITY.world, rr.Transform3D(scale=[1.0, -1.0, 1.0]), static=True)
-        self._log_map(grid)
-        self._log_obstacles(scenario)
-        for kind in COMPONENT_KINDS:
-            of_kind = [c for c in components if c.kind == kind]
-            if of_kind:
-                self._log_components(kind, of_kind)
-        if len(scenario.question_region):
-            self._rec.log(
-                ENTITY.question_region,
-                rr.LineStrips2D(
-                    [_closed(scenario.question_region)],
-                    labels=["question region"],
-                    colors=COLOURS["region"],
-                ),
-                static=True,
-            )
-        # styles of the per-tick entities, static so the columns carry only the data
-        for entity, style in (
-            (ENTITY.u, rr.Arrows2D.from_fields(colors=COLOURS["u"], radii=0.02)),
-            (ENTITY.v, rr.Arrows2D.from_fields(colors=COLOURS["v"], radii=0.025)),
-            (ENTITY.laser, rr.Points2D.from_fields(colors=COLOURS["laser"], radii=0.02)),
-            (ENTITY.predicted_path, rr.LineStrips2D.from_fields(colors=COLOURS["path"])),
-            (ENTITY.target, rr.Points2D.from_fields(colors=COLOURS["target"], radii=0.08)),
-        ):
-            self._rec.log(entity, style, static=True)
-        self._rec.log(
-            ENTITY.footprint,
-            rr.LineStrips2D([_closed(scenario.robot.footprint())], colors=COLOURS["robot"]),
-            static=True,
-        )
-
-    def _log_map(self, grid: OccupancyGrid) -> None:
-        # occupancy image: pixel (u, v) -> map (x0 + u res, y_max - v res); row 0 = top
-        image = np.where(grid.occupied, 60, 235).astype(np.uint8)[::-1]
-        x0, _, _, y_max = grid.extent()
-        self._rec.log(
-            ENTITY.map,
-            rr.Transform3D(
-                translation=[x0, y_max, 0.0], scale=[grid.resolution, -grid.resolution, 1.0]
-            ),
-            rr.Image(image, color_model="L", draw_order=-10.0),
-            static=True,
-        )
-
-    def _log_obstacles(self, scenario: Scenario) -> None:
-        strips, names = [], []
-        for box in scenario.walls + scenario.boxes:
-            strips.append(_closed(box.corners()))
-            names.append(box.name)
-        for cyl in scenario.cylinders:
-            strips.append(_circle(cyl.centre, cyl.radius))
-            names.append(cyl.name)
-        for table in scenario.tables:
-            top = Box(table.name, "obstacle", table.centre, table.size, table.yaw, 0, table.colour)
-            strips.append(_closed(top.corners()))
-            names.append(table.name)
-            for leg in table.leg_boxes():
-                strips.append(_closed(leg.corners()))
-                names.append(leg.name)
-        if strips:
-            self._rec.log(
-                ENTITY.obstacles,
-                rr.LineStrips2D(
-                    strips, labels=names, colors=COLOURS["obstacle"], show_labels=False
-                ),
-                static=True,
-            )
-
-    def _log_components(self, kind: str, of_kind: list[SemanticComponent]) -> None:
-        pts = [_component_points(c) for c in of_kind]
-        labels = [c.id for c, p in zip(of_kind, pts, strict=True) for _ in range(len(p))]
-        archetypes: list[Any] = [
-            rr.Points2D(
-                np.vstack(pts),
-                labels=labels,
-                colors=COLOURS[kind],
-                radii=0.04,
-                show_labels=False,
-            )
-        ]
-        passages = [c for c in of_kind if len(c.ends) == 2]
-        if passages:
-            archetypes.append(
-                rr.LineStrips2D(
-                    [np.asarray(c.ends, dtype=float) for c in passages],
-                    labels=[c.id for c in passages],
-                    colors=COLOURS[kind],
-                    radii=0.03,
-                )
-            )
-        self._rec.log(ENTITY.component(kind), *archetypes, static=True)
+        log_static(self._rec, scenario, components, grid)
 
     # -------------------------------------------------------------- per tick
 
@@ -307,6 +199,7 @@ class TrialRecorder:
         self._target_t: list[float] = []
         self._target: list[np.ndarray] = []  # (k, 2) float32 map frame; (0, 2): none
         self._target_labels: list[str] = []  # k per target, concatenated
+        self._frames: dict[str, tuple[list[float], list[bytes]]] = {}  # entity -> JPEGs
 
     def tick(
         self,
@@ -317,6 +210,7 @@ class TrialRecorder:
         v: np.ndarray,
         assist: Any | None = None,
         camera: np.ndarray | None = None,
+        tail_camera: np.ndarray | None = None,
     ) -> None:
         """Record one control tick.
 
@@ -327,8 +221,8 @@ class TrialRecorder:
         pose : Pose2D-like
             True robot pose in the map frame (``x`` [m], ``y`` [m], ``yaw`` [rad]).
         points : ndarray, shape (m, 2), or None
-            Laser hits in the ROBOT frame [m] (``Observation.points``); kept at
-            ``settings.laser_hz``.
+            Laser hits in the ROBOT frame [m] (``Observation.points``); every
+            ``settings.laser_stride``-th kept at ``settings.laser_hz`` while the robot moves.
         u, v : ndarray, shape (3,)
             Joystick command and command sent to the robot, robot frame
             (v_x [m/s], v_y [m/s], omega [rad/s]).
@@ -336,41 +230,93 @@ class TrialRecorder:
             Diagnostics of the mode: ``beta``, ``label``, ``target``, ``scores``
             (name -> number) and ``predicted_path`` (k, 3) robot frame. ``None``
             for ticks without a mode (e.g. the baseline block).
-        camera : ndarray, shape (h, w, 3) uint8, optional
-            A camera frame, logged when given (the caller picks the rate).
+        camera, tail_camera : ndarray, shape (h, w, 3) uint8, optional
+            Front and tail camera frames, logged as JPEG when given (the caller picks the
+            rate, e.g. by :meth:`camera_due`).
         """
         if self._closed:
             raise RuntimeError(f"{self.path}: recorder is closed")
         t = float(t)
         if math.isnan(self._next_flush):
             self._next_flush = t + self.settings.flush_every_s
-        self._t.append(t)
-        self._pose.append((float(pose.x), float(pose.y), float(pose.yaw)))
-        self._u.append((float(u[0]), float(u[1])))
-        self._v.append((float(v[0]), float(v[1])))
-        if points is not None and self.settings.laser_hz > 0 and t >= self._next_laser - _EPS_S:
-            self._laser_t.append(t)
-            self._laser.append(np.array(points, dtype=np.float32).reshape(-1, 2))
-            self._next_laser = _next_time(self._next_laser, t, self.settings.laser_hz)
+        xy_yaw = (float(pose.x), float(pose.y), float(pose.yaw))
+        motion = (t, xy_yaw, (float(u[0]), float(u[1])), (float(v[0]), float(v[1])))
+        beta = float(assist.beta) if assist is not None else None
+        self._last_motion = None
+        if t >= self._next_motion - _EPS_S:
+            self._next_motion = _next_time(self._next_motion, t, self.settings.motion_hz)
+            self._buffer_motion(motion, beta)
+        else:  # kept until the next tick: the last tick of a trial is always recorded
+            self._last_motion = (motion, beta)
+        if points is not None:
+            self._buffer_laser(t, xy_yaw, points)
         if assist is not None:
+            self._buffer_assist(t, pose, assist)
+        for entity, frame in ((ENTITY.camera, camera), (ENTITY.tail_camera, tail_camera)):
+            if frame is not None:
+                self._buffer_frame(t, entity, frame)
+        if camera is not None or tail_camera is not None:
+            self._camera_pose = xy_yaw
+            if self.settings.camera_hz > 0:
+                self._next_camera = _next_time(self._next_camera, t, self.settings.camera_hz)
+        if t >= self._next_flush - _EPS_S:
+            self._flush_buffers()
+            self._next_flush = t + self.settings.flush_every_s
+
+    def camera_due(self, t: float, pose: Any) -> bool:
+        """Whether a camera frame at ``t`` [s] and ``pose`` would be logged: one per
+        ``settings.camera_hz`` period, none while the robot stands still."""
+        s = self.settings
+        if s.camera_hz <= 0 or float(t) < self._next_camera - _EPS_S:
+            return False
+        return _moved(self._camera_pose, (float(pose.x), float(pose.y), float(pose.yaw)), s)
+
+    def _buffer_laser(self, t: float, xy_yaw: tuple[float, float, float], points: Any) -> None:
+        s = self.settings
+        if s.laser_hz <= 0 or t < self._next_laser - _EPS_S:
+            return
+        if not _moved(self._laser_pose, xy_yaw, s):
+            return  # standing still: the last scan shows the same
+        self._laser_t.append(t)
+        self._laser.append(np.array(points, dtype=np.float32).reshape(-1, 2)[:: s.laser_stride])
+        self._laser_pose = xy_yaw
+        self._next_laser = _next_time(self._next_laser, t, s.laser_hz)
+
+    def _buffer_motion(self, motion: tuple[Any, ...], beta: float | None) -> None:
+        """Pose, ``u``, ``v`` (and ``beta``, with a mode) of one tick."""
+        t, xy_yaw, u, v = motion
+        self._t.append(t)
+        self._pose.append(xy_yaw)
+        self._u.append(u)
+        self._v.append(v)
+        if beta is not None:
             self._beta_t.append(t)
-            self._beta.append(float(assist.beta))
+            self._beta.append(beta)
+
+    def _buffer_assist(self, t: float, pose: Any, assist: Any) -> None:
+        if t >= self._next_scores - _EPS_S:
+            self._next_scores = _next_time(self._next_scores, t, self.settings.scores_hz)
             for key, value in assist.scores.items():
                 times, values = self._scores.setdefault(key, ([], []))
                 times.append(t)
                 values.append(float(value))
-            if self.settings.path_hz > 0 and t >= self._next_path - _EPS_S:
-                self._path_t.append(t)
-                self._path.append(self._path_in_map(pose, assist.predicted_path))
-                self._next_path = _next_time(self._next_path, t, self.settings.path_hz)
-            state = (str(assist.target), str(assist.label))
-            if state != self._target_state:
-                self._log_target(t, state)
-        if camera is not None:
-            self._log_camera(t, camera)
-        if t >= self._next_flush - _EPS_S:
-            self._flush_buffers()
-            self._next_flush = t + self.settings.flush_every_s
+        if self.settings.path_hz > 0 and t >= self._next_path - _EPS_S:
+            self._path_t.append(t)
+            self._path.append(self._path_in_map(pose, assist.predicted_path))
+            self._next_path = _next_time(self._next_path, t, self.settings.path_hz)
+        state = (str(assist.target), str(assist.label))
+        if state != self._target_state:
+            self._log_target(t, state)
+
+    def _buffer_frame(self, t: float, entity: str, frame: np.ndarray) -> None:
+        s = self.settings
+        if s.jpeg_quality == 0:  # uncompressed: logged at once
+            self._rec.set_time(TIMELINE, duration=t)
+            self._rec.log(entity, rr.Image(np.asarray(frame)))
+            return
+        times, blobs = self._frames.setdefault(entity, ([], []))
+        times.append(t)
+        blobs.append(_jpeg(frame, s.camera_width_px, s.jpeg_quality))
 
     @staticmethod
     def _path_in_map(pose: Any, path: np.ndarray) -> np.ndarray:
@@ -390,17 +336,10 @@ class TrialRecorder:
             # no target, or an id the scene does not know: nothing highlighted
             self._target.append(np.empty((0, 2), dtype=np.float32))
             return
-        pts = _component_points(component).astype(np.float32)
+        pts = component_points(component).astype(np.float32)
         text = f"{target} ({label})" if label else target
         self._target.append(pts)
         self._target_labels += [text] + [""] * (len(pts) - 1)
-
-    def _log_camera(self, t: float, frame: np.ndarray) -> None:
-        image = rr.Image(np.asarray(frame))
-        if self.settings.jpeg_quality > 0:
-            image = image.compress(jpeg_quality=self.settings.jpeg_quality)
-        self._rec.set_time(TIMELINE, duration=t)
-        self._rec.log(ENTITY.camera, image)
 
     def _flush_motion(self) -> None:
         """Send the buffered robot poses and the ``u`` and ``v`` arrows."""
@@ -469,6 +408,12 @@ class TrialRecorder:
                     [len(p) for p in self._laser]
                 ),
             )
+        for entity, (times_s, blobs) in self._frames.items():
+            rec.send_columns(
+                entity,
+                indexes=[rr.TimeColumn(TIMELINE, duration=np.asarray(times_s))],
+                columns=rr.EncodedImage.columns(blob=blobs, media_type=["image/jpeg"] * len(blobs)),
+            )
         self._reset_buffers()
 
     # -------------------------------------------------------------- text
@@ -494,6 +439,8 @@ class TrialRecorder:
         """Send what is buffered, flush to disk and close the file (idempotent)."""
         if self._closed:
             return
+        if self._last_motion is not None:
+            self._buffer_motion(*self._last_motion)
         self._flush_buffers()
         self._rec.flush()
         self._rec.disconnect()

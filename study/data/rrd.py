@@ -120,6 +120,12 @@ def format_summary(summary: Mapping[str, Any]) -> str:
     lines.append(f"  {'entity'.ljust(width)}  {'rows':>7}  {'static':>6}")
     for name, counts in summary["entities"].items():
         lines.append(f"  {name.ljust(width)}  {counts['rows']:>7}  {counts['static']:>6}")
+    frames = [
+        f"{name} {counts['rows']}"
+        for name, counts in summary["entities"].items()
+        if name.startswith("camera/") and counts["rows"]
+    ]
+    lines.append(f"  camera frames: {', '.join(frames) if frames else 'none'}")
     return "\n".join(lines)
 
 

@@ -41,7 +41,11 @@ SCHEMA_VERSION = 1
 BUSY_TIMEOUT_MS = 30_000  # [ms] wait for another process's write lock
 
 TRIAL_PHASES = ("training", "practice", "baseline", "main")
-TRIAL_STATUSES = ("running", "completed", "aborted")
+TRIAL_STATUSES = ("running", "completed", "timed_out", "aborted")
+# a trial that ran to its end (its task done or its time limit reached): it counts and is
+# not run again; databases written before "timed_out" existed store a timeout as
+# "completed" with completed_task false (docs/decisions.md)
+TRIAL_FINISHED = ("completed", "timed_out")
 PARTICIPANT_KINDS = ("human", "synthetic", "scripted")
 
 

@@ -1,10 +1,14 @@
 """Trial clocks: free-running or paced by the wall clock at 20 Hz, and the experimenter's
-pause and abort (DESIGN.md, "One control tick")."""
+pause and abort (DESIGN.md, "One control tick"), Ctrl-C included (:func:`sigint_aborts`)."""
 
 from __future__ import annotations
 
+import contextlib
 import math
+import signal
+import threading
 import time
+from collections.abc import Iterator
 
 import numpy as np
 
@@ -68,13 +72,21 @@ class WallClock:
         return float(np.percentile(np.abs(np.asarray(self._periods) - self.dt), 99) * 1e3)
 
 
+INTERRUPTED = "Ctrl-C by the experimenter"
+
+
 class ExperimenterControl:
-    """Pause and abort requested by the experimenter (from another thread or a callback)."""
+    """Pause and abort requested by the experimenter (from another thread or a callback).
+
+    ``ticking`` is True while a trial's loop runs its ticks (it looks at ``aborted`` before
+    every tick), set by that loop.
+    """
 
     def __init__(self) -> None:
         self.paused = False
         self.aborted = False
         self.reason = ""
+        self.ticking = False
 
     def pause(self) -> None:
         self.paused = True
@@ -85,3 +97,34 @@ class ExperimenterControl:
     def abort(self, reason: str = "aborted by the experimenter") -> None:
         self.aborted = True
         self.reason = reason
+
+
+@contextlib.contextmanager
+def sigint_aborts(control: ExperimenterControl) -> Iterator[ExperimenterControl]:
+    """Ctrl-C (SIGINT) aborts the session cleanly while the block runs; the previous
+    handler is restored afterwards.
+
+    Installed explicitly, so Ctrl-C works even when the process started with SIGINT
+    ignored (a script's ``cmd &``). While a trial ticks, the first Ctrl-C asks ``control``
+    to abort: the loop finishes the current tick and stores the trial ``aborted`` with
+    its outcome, and the session ends ``aborted``. Elsewhere (a page, a form, between
+    trials), or at a second Ctrl-C, it raises ``KeyboardInterrupt``, whose path stores
+    what a running trial buffered and marks it ``aborted``. Outside the main thread (where
+    Python cannot install signal handlers) nothing is installed.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield control
+        return
+
+    def on_sigint(signum: int, frame: object) -> None:
+        if control.ticking and not control.aborted:
+            control.abort(INTERRUPTED)
+            return
+        raise KeyboardInterrupt(INTERRUPTED)
+
+    previous = signal.signal(signal.SIGINT, on_sigint)
+    try:
+        yield control
+    finally:
+        # None: a handler not installed from Python; the default is the nearest to it
+        signal.signal(signal.SIGINT, previous if previous is not None else signal.SIG_DFL)

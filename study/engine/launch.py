@@ -1,7 +1,8 @@
 """One participant's session as ``asa run`` starts it: a scripted or synthetic participant
 without a screen, or the pygame screen (:class:`study.participants.human.HumanParticipant`)
 driven by a person or, headless, by a scripted or synthetic participant's decisions
-(:class:`study.ui.inject.EventDriver`)."""
+(:class:`study.ui.inject.EventDriver`); Ctrl-C aborts it cleanly
+(:func:`study.engine.clocks.sigint_aborts`)."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from study.engine.clocks import ExperimenterControl, sigint_aborts
 from study.engine.protocol import Protocol, load_protocol
 from study.engine.session import SessionSummary, check_code, default_seed, run_session
 from study.engine.trial import TrialWriter
@@ -45,6 +47,7 @@ def run_participant(
     progress: Callable[[str], None] | None = None,
     status: Callable[[str], None] | None = None,
     on_tick: Callable[[int, TrialWriter], None] | None = None,
+    status_every_s: float = 5.0,
 ) -> SessionSummary:
     """Run (or resume) participant ``code``'s session of ``protocol`` in ``db``.
 
@@ -70,32 +73,33 @@ def run_participant(
     fast : bool
         Headless: free-running instead of the wall clock.
     progress, status, on_tick : callable, optional
-        One line per phase and trial; the screen's status lines; after every tick (screen
-        only).
+        One line per phase and trial; the screen's status line, every
+        ``status_every_s`` of wall time during a trial (screen only); after every tick.
+    status_every_s : float
+        [s] of wall time between the screen's status lines.
 
     Returns
     -------
     SessionSummary
+        ``status`` "aborted" when Ctrl-C stopped a trial (its row ``aborted`` with the
+        reason :data:`study.engine.clocks.INTERRUPTED`); Ctrl-C outside a trial raises
+        ``KeyboardInterrupt`` (the session stays resumable).
     """
     check_code(code)
     p = load_protocol(protocol)
     seed = seed if seed is not None else default_seed(p.study.seed, code)
-    if input_kind != "human" and not headless:
-        participant = decider(input_kind, seed)
-        return run_session(
-            p,
-            code,
-            db,
-            participant=participant,
-            seed=seed,
-            resume=resume,
-            force=force,
-            progress=progress,
-        )
-    return _on_screen(
-        p, code, db, input_kind, seed, resume=resume, force=force, headless=headless,
-        snapshots=snapshots, fast=fast, progress=progress, status=status, on_tick=on_tick,
-    )  # fmt: skip
+    with sigint_aborts(ExperimenterControl()) as control:
+        if input_kind != "human" and not headless:
+            participant = decider(input_kind, seed)
+            return run_session(
+                p, code, db, participant=participant, seed=seed, resume=resume, force=force,
+                progress=progress, control=control, on_tick=on_tick,
+            )  # fmt: skip
+        return _on_screen(
+            p, code, db, input_kind, seed, resume=resume, force=force, headless=headless,
+            snapshots=snapshots, fast=fast, progress=progress, status=status, on_tick=on_tick,
+            control=control, status_every_s=status_every_s,
+        )  # fmt: skip
 
 
 def _on_screen(
@@ -113,6 +117,8 @@ def _on_screen(
     progress: Callable[[str], None] | None,
     status: Callable[[str], None] | None,
     on_tick: Callable[[int, TrialWriter], None] | None,
+    control: ExperimenterControl,
+    status_every_s: float,
 ) -> SessionSummary:
     """The session on the participant's screen (the camera image it shows is recorded)."""
     if headless:
@@ -126,7 +132,10 @@ def _on_screen(
     driver = None
     if input_kind != "human":
         driver = EventDriver(decider(input_kind, seed), GamepadMapping.from_settings(p.input))
-    person = HumanParticipant(p.ui, p.input, driver=driver, snapshots=snapshots, status=status)
+    person = HumanParticipant(
+        p.ui, p.input, driver=driver, snapshots=snapshots, status=status,
+        status_every_s=status_every_s,
+    )  # fmt: skip
     try:
         return run_session(
             p,
@@ -137,8 +146,8 @@ def _on_screen(
             resume=resume,
             force=force,
             progress=progress,
+            control=control,
             clock=FreeClock() if fast else person.clock(),
-            camera_hz=2.0,  # the image on the screen (HumanParticipant.camera_image)
             on_tick=on_tick,
         )
     finally:

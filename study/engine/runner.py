@@ -24,7 +24,9 @@ from sim.occupancy import build_grid
 from sim.scenario import load_scenario
 from sim.semantics import derive_components
 from sim.world import World
+from study.data.recording import RecorderSettings
 from study.data.storage import (
+    TRIAL_FINISHED,
     Event,
     Participant,
     Response,
@@ -158,6 +160,10 @@ class SessionRunner:
         self.control = control
         self.clock = clock
         self.camera_hz = camera_hz
+        rec = protocol.recording
+        self.recording = RecorderSettings(
+            camera_width_px=rec.camera_width, jpeg_quality=rec.jpeg_quality
+        )
         self.on_tick = on_tick
         db_path = database_file(db)
         self.folder = db_path.parent
@@ -258,17 +264,7 @@ class SessionRunner:
             out.get("collisions"),
         )
         self.trials.append(summary)
-        line = f"{self.code} {spec.phase} #{spec.ordinal}"
-        if spec.attempt:
-            line += f" attempt {spec.attempt}"
-        if spec.mode:
-            line += f" mode {spec.mode}"
-        line += f": {result.status}, {result.duration_s:.1f} s simulated"
-        if out.get("collisions") is not None:
-            line += f", {out['collisions']} collisions"
-        if "passed" in out:
-            line += ", passed" if out["passed"] else ", not passed"
-        self.progress(line)
+        self.progress(_trial_line(self.code, spec, result))
         return result
 
     def _spec(self, phase: str, ordinal: int, mode: str, **fields: Any) -> TrialSpec:
@@ -281,6 +277,8 @@ class SessionRunner:
             seed=derive_seed(self.seed, _PHASE_INDEX[phase], ordinal, attempt),
             instruction=self._instruction(phase),
             camera_hz=self.camera_hz,
+            camera_views=("front", "tail") if self.protocol.ui.layout == "laser" else ("front",),
+            recording=self.recording,
             **fields,
         )
 
@@ -327,7 +325,7 @@ class SessionRunner:
             return True
         main = self.protocol.main
         for ordinal, mode in enumerate(phase.modes):
-            if any(t.status == "completed" for t in self._trials("training", ordinal)):
+            if any(t.status in TRIAL_FINISHED for t in self._trials("training", ordinal)):
                 continue
             limit = phase.duration_s if phase.duration_s is not None else main.timeout_s
             spec = self._spec(
@@ -341,8 +339,9 @@ class SessionRunner:
                     collision_penalty_s=self.protocol.scoring.collision_penalty_s,
                 ),
                 secondary=self.protocol.secondary_settings if phase.secondary else None,
+                limit_is_duration=True,
             )
-            if self._run(spec, phase.scenario).status != "completed":
+            if self._run(spec, phase.scenario).status not in TRIAL_FINISHED:
                 return False
         return True
 
@@ -350,7 +349,7 @@ class SessionRunner:
         """True: go on; False: aborted; None: excluded."""
         modes = self.order if phase.order == "assigned" else self.protocol.modes
         for ordinal, mode in enumerate(modes):
-            done = [t for t in self._trials("practice", ordinal) if t.status == "completed"]
+            done = [t for t in self._trials("practice", ordinal) if t.status in TRIAL_FINISHED]
             passed = any(t.outcome.get("passed") for t in done)
             attempts = len(done)
             feedback = ""
@@ -369,7 +368,7 @@ class SessionRunner:
                     feedback=feedback,
                 )
                 result = self._run(spec, phase.scenario, max_collisions=phase.max_collisions)
-                if result.status != "completed":
+                if result.status not in TRIAL_FINISHED:
                     return False
                 attempts += 1
                 passed = bool(result.outcome.get("passed"))
@@ -380,7 +379,7 @@ class SessionRunner:
         return True
 
     def baseline(self, phase: Baseline) -> bool:
-        if any(t.status == "completed" for t in self._trials("baseline", 0)):
+        if any(t.status in TRIAL_FINISHED for t in self._trials("baseline", 0)):
             return True
         spec = self._spec(
             "baseline",
@@ -390,12 +389,12 @@ class SessionRunner:
             secondary=self.protocol.secondary_settings,
             baseline=True,
         )
-        return self._run(spec, self.protocol.main.scenario).status == "completed"
+        return self._run(spec, self.protocol.main.scenario).status in TRIAL_FINISHED
 
     def main(self, phase: MainTrials) -> bool:
         last = len(self.order) - 1
         for ordinal, mode in enumerate(self.order):
-            done = [t for t in self._trials("main", ordinal) if t.status == "completed"]
+            done = [t for t in self._trials("main", ordinal) if t.status in TRIAL_FINISHED]
             if done:
                 trial_id = done[0].id
             else:
@@ -413,7 +412,7 @@ class SessionRunner:
                     end_on_collision=phase.end_on_collision,
                 )
                 result = self._run(spec, phase.scenario)
-                if result.status != "completed":
+                if result.status not in TRIAL_FINISHED:
                     return False
                 trial_id = result.trial_id
             if phase.after_trial is not None:
@@ -478,6 +477,32 @@ class SessionRunner:
             if note:
                 row.note = f"{row.note}; {note}" if row.note else note
         self.progress(f"{self.code} session {status}" + (f" ({note})" if note else ""))
+
+
+_STATUS_WORDS = {"completed": "completed", "timed_out": "timed out", "aborted": "aborted"}
+
+
+def _trial_line(code: str, spec: TrialSpec, result: TrialResult) -> str:
+    """The experimenter's line for a finished trial: who, which, how it ended."""
+    out = result.outcome
+    line = f"{code} {spec.phase} #{spec.ordinal}"
+    if spec.attempt:
+        line += f" attempt {spec.attempt}"
+    if spec.mode:
+        line += f" mode {spec.mode}"
+    line += f": {_STATUS_WORDS.get(result.status, result.status)}"
+    if result.status == "timed_out" and spec.primary is not None:
+        line += f" at the {spec.primary.timeout_s:g} s limit"
+        if spec.primary.route:
+            line += f" ({out.get('legs_reached', 0)} of {len(spec.primary.route)} legs)"
+    elif result.status == "aborted" and out.get("aborted_reason"):
+        line += f" ({out['aborted_reason']})"
+    line += f", {result.duration_s:.1f} s simulated"
+    if out.get("collisions") is not None:
+        line += f", {out['collisions']} collisions"
+    if "passed" in out:
+        line += ", passed" if out["passed"] else ", not passed"
+    return line
 
 
 def _practice_feedback(outcome: dict[str, Any], phase: Practice) -> str:

@@ -28,6 +28,7 @@ from study.data.storage import (
 )
 from study.engine.counterbalance import assign_indexed, cycle_length
 from study.engine.protocol import Protocol
+from study.engine.resume import resume_plan, session_state
 from study.engine.runner import SessionRunner, TrialSummary, derive_seed
 from study.engine.trial import ExperimenterControl, FreeClock, TrialWriter, WallClock
 from study.participants.base import Participant as SessionParticipant
@@ -309,8 +310,9 @@ def run_session(
         Receives one experimenter line per phase and trial; the experimenter's pause and
         abort (:class:`study.engine.clocks.ExperimenterControl`).
     clock, camera_hz : optional
-        Default for human participants a wall-clock pace and 2 camera frames per second
-        in the recordings; else free-running and none.
+        Default for human participants a wall-clock pace, else free-running; camera
+        frames per second in the recordings, default the protocol's
+        ``[recording] camera_hz``.
     on_tick : callable, optional
         Passed to :func:`study.engine.trial.run_trial`.
     recordings : str or Path, optional
@@ -370,7 +372,7 @@ def _runner(
         progress=progress if progress is not None else (lambda line: None),
         control=control if control is not None else ExperimenterControl(),
         clock=clock if clock is not None else (WallClock() if human else FreeClock()),
-        camera_hz=camera_hz if camera_hz is not None else (2.0 if human else 0.0),
+        camera_hz=camera_hz if camera_hz is not None else protocol.recording.camera_hz,
         on_tick=on_tick,
         recordings=Path(recordings).resolve() if recordings is not None else None,
     )
@@ -383,6 +385,11 @@ def _run(runner: SessionRunner, code: str, opened: _Opened) -> SessionSummary:
         + (" resumed" if opened.resumed else "")
         + (" (forced)" if opened.forced else "")
         + f", order index {opened.person.order_index}"
+        + (
+            f": {resume_plan(session_state(runner.engine, opened.session_id))}"
+            if opened.resumed
+            else ""
+        )
     )
     try:
         status = runner.run()

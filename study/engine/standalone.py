@@ -37,6 +37,7 @@ def standalone_trial(
     secondary: SecondarySettings | None = None,
     seed: int = 0,
     camera_hz: float = 0.0,
+    camera_views: tuple[str, ...] = ("front",),
     clock: Any = None,
     control: Any = None,
     on_tick: Callable[[int, TrialWriter], None] | None = None,
@@ -57,7 +58,9 @@ def standalone_trial(
         the trial ends when the route is driven or at ``timeout_s`` [s] of simulated time.
     secondary : questions in the scenario's question region, or None.
     seed : the trial's seed (world noise, questions) and the participant row's.
-    camera_hz, clock, control, on_tick : as :func:`study.engine.trial.run_trial`.
+    camera_hz, camera_views : camera frames per second in the recording, and which cameras
+        (:class:`study.engine.trial.TrialSpec`).
+    clock, control, on_tick : as :func:`study.engine.trial.run_trial`.
 
     Returns
     -------
@@ -82,6 +85,7 @@ def standalone_trial(
         primary=PrimarySettings(route=route, inspection_required=inspection, timeout_s=timeout_s),
         secondary=secondary,
         camera_hz=camera_hz,
+        camera_views=camera_views,
     )
     values = _trial_values(person_id, session_id, spec, sc.name)
     with World(sc, seed=0, components=components) as world:

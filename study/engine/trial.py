@@ -12,7 +12,7 @@ import math
 import os
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -24,7 +24,7 @@ from sim.occupancy import OccupancyGrid
 from sim.scenario import Scenario, point_in_region
 from sim.types import Contact, Pose2D, SemanticComponent
 from sim.world import World
-from study.data.recording import TrialRecorder
+from study.data.recording import RecorderSettings, TrialRecorder
 from study.engine.clocks import DT, ExperimenterControl, FreeClock, WallClock
 from study.engine.events import EventSink, TrialWriter, jsonable
 from study.engine.recognition import RecognitionTally
@@ -85,6 +85,11 @@ class TrialSpec:
     end_on_collision: bool = False
     feedback: str = ""  # shown on the screen from the start (practice)
     camera_hz: float = 0.0  # [Hz] camera frames in the recording; 0: none
+    camera_views: tuple[str, ...] = ("front",)  # recorded cameras: "front", "tail"
+    recording: RecorderSettings = field(default_factory=RecorderSettings)  # rates, JPEG
+    # the time limit is the trial's planned length (training), so reaching it completes
+    # the trial; otherwise a trial that reaches it ends "timed_out"
+    limit_is_duration: bool = False
 
     def __post_init__(self) -> None:
         # a trial must be able to end: by its driving task (which times out) or, for the
@@ -98,6 +103,10 @@ class TrialSpec:
             )
         if not (math.isfinite(self.camera_hz) and self.camera_hz >= 0):
             raise ValueError(f"trial spec: field 'camera_hz': must be >= 0, got {self.camera_hz}")
+        if not set(self.camera_views) <= {"front", "tail"}:
+            raise ValueError(
+                f"trial spec: field 'camera_views': must be of front, tail, got {self.camera_views}"
+            )
 
 
 @dataclass(frozen=True, slots=True)
@@ -105,7 +114,7 @@ class TrialResult:
     """How a trial ended."""
 
     trial_id: int
-    status: str  # "completed" or "aborted"
+    status: str  # "completed", "timed_out" or "aborted" (storage.TRIAL_STATUSES)
     outcome: dict[str, Any]  # as stored in trial.outcome
     ticks: int
     duration_s: float  # [s] simulated
@@ -136,8 +145,11 @@ class TrialLoop:
 
     Everything that can fail on bad input (the tasks' settings) is built before the trial
     row is written with status ``running``; :meth:`run` then runs the ticks, and an
-    exception inside them (or Ctrl-C) stores what is buffered and marks the trial
-    ``aborted`` with the reason before it propagates.
+    exception inside them (or ``KeyboardInterrupt``) stores what is buffered and marks the
+    trial ``aborted`` with the reason before it propagates. An abort asked of the
+    ``control`` (Ctrl-C under :func:`study.engine.clocks.sigint_aborts`, which sees
+    ``control.ticking``) ends the trial after the current tick, stored ``aborted`` with
+    its outcome.
     """
 
     def __init__(
@@ -179,8 +191,6 @@ class TrialLoop:
         self.footprint = scenario.robot.footprint()
         self.lrf = RangeStats()  # Sec. 7.5's clearance, the laser's range from the centre
         self.crashed = False  # a collision ended the trial (end_on_collision)
-        hz = spec.camera_hz
-        self.camera_every = max(1, round(1.0 / (DT * hz))) if hz > 0 else 0
         self.sec_events: list[Any] = []  # SecondaryEvent, for the outcome's summary
         self.open_contacts: set[int] = set()
         self.was_in_region = False
@@ -210,10 +220,15 @@ class TrialLoop:
                 scenario=scene.scenario,
                 components=scene.components,
                 grid=scene.grid,
+                settings=replace(self.spec.recording, camera_hz=self.spec.camera_hz),
             )
             self.sink = EventSink(self.writer, recorder)
             self._begin()
-            self._loop()
+            self.control.ticking = True
+            try:
+                self._loop()
+            finally:
+                self.control.ticking = False
         except BaseException as exc:
             # keep what was buffered and leave no ``running`` row behind; a resumed
             # session runs the trial again
@@ -340,17 +355,28 @@ class TrialLoop:
         self.writer.samples.append(record.row(self.trial_id))
         if self.tally is not None:
             self.tally.add(record.label, record.target, task, target)
-        camera = None
-        if self.camera_every and tick % self.camera_every == 0:
-            participant = self.participant  # a screen's image, else rendered here
-            camera = (
-                participant.camera_image() if participant.shows_camera else world.camera_image()
-            )
         assert self.sink is not None  # made by run()
-        self.sink.recorder.tick(t, pose, obs.points, u, record.v, assist=out, camera=camera)
+        recorder = self.sink.recorder
+        front, tail = self._camera_frames() if recorder.camera_due(t, pose) else (None, None)
+        recorder.tick(t, pose, obs.points, u, record.v, assist=out, camera=front, tail_camera=tail)
         if tick % FLUSH_EVERY_TICKS == 0:
             self.writer.flush(tick)
         return done
+
+    def _camera_frames(self) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """The front and tail camera frames the recording asks for: the images on the
+        participant's screen, else rendered here at the recording's width."""
+        views, participant, world = self.spec.camera_views, self.participant, self.scene.world
+        width = self.spec.recording.camera_width_px
+        frames: list[np.ndarray | None] = []
+        for which in ("front", "tail"):
+            if which not in views:
+                frames.append(None)
+            elif participant.shows_camera:
+                frames.append(participant.camera_image(which))
+            else:
+                frames.append(world.camera_image(which, width_px=width))
+        return frames[0], frames[1]
 
     def _task_events(
         self,
@@ -407,11 +433,10 @@ class TrialLoop:
 
     def _abort(self, exc: BaseException) -> None:
         """After an exception: store the buffered rows, the trial ``aborted`` (best effort)."""
-        reason = (
-            "interrupted"
-            if isinstance(exc, KeyboardInterrupt)
-            else f"error: {type(exc).__name__}: {exc}"
-        )
+        if isinstance(exc, KeyboardInterrupt):  # Ctrl-C, the window closed: say which
+            reason = f"interrupted: {exc}" if str(exc) else "interrupted"
+        else:
+            reason = f"error: {type(exc).__name__}: {exc}"
         if self.sink is not None:
             self.sink.close_questions()
         try:
@@ -419,11 +444,19 @@ class TrialLoop:
         except Exception:  # the database itself failed; resume aborts the trial
             pass
 
+    def _end_status(self) -> str:
+        """``aborted``, ``timed_out`` (the driving task reached its time limit, unless the
+        limit is the trial's planned length) or ``completed``."""
+        primary = self.primary
+        if self.status == "completed" and primary is not None and primary.timed_out:
+            return "completed" if self.spec.limit_is_duration else "timed_out"
+        return self.status
+
     def _finish(self) -> TrialResult:
         """The outcome, status and last rows in one transaction; then ``end_trial``."""
         assert self.sink is not None  # made by run()
         self.sink.close_questions()  # shown, never resolved
-        tick, t, status = self.tick, self.t, self.status
+        tick, t, status = self.tick, self.t, self._end_status()
         outcome: dict[str, Any] = {"ticks": tick, "duration_s": t}
         values: dict[str, Any] = {"status": status, "tick_jitter_ms": self.clock.jitter_p99_ms()}
         if self.primary is not None:

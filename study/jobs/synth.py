@@ -24,7 +24,7 @@ from sqlalchemy import select
 from sqlalchemy.engine import Connection, Engine
 
 from study.data.merge import merge_participant, merged_codes, table_rows
-from study.data.storage import Base, open_database
+from study.data.storage import TRIAL_FINISHED, Base, open_database
 from study.engine.protocol import Protocol, load_protocol
 from study.engine.recognition import RecognitionTally
 from study.engine.session import derive_seed, run_session
@@ -335,8 +335,9 @@ def _run_jobs(jobs: list[_Job], workers: int, finish: Callable[[_Done], None]) -
 
 
 def sanity_summary(db: str | Path, *, phase: str = "main") -> dict[str, dict[str, Any]]:
-    """Per mode over the completed ``phase`` trials: trials, completion rate, mean
-    collisions and score; for modes with task recognition, the in-the-loop recognition
+    """Per mode over the finished ``phase`` trials (completed or timed out): trials,
+    completion rate (route finished), mean collisions and score; for modes with task
+    recognition, the in-the-loop recognition
     pooled over the trials' labelled ticks (ticks with a true task): ``labelled_ticks``,
     the share whose recognised task and target both match (``recognition_match``), whose
     task alone matches (``task_match``) and that recognised nothing (``null_rate``).
@@ -352,7 +353,7 @@ def sanity_summary(db: str | Path, *, phase: str = "main") -> dict[str, dict[str
             trials = table_rows(conn, "trial", lambda t: t.c.phase == phase)
             by_mode: dict[str, list[dict[str, Any]]] = {}
             for t in trials:
-                if t["status"] == "completed":
+                if t["status"] in TRIAL_FINISHED:
                     by_mode.setdefault(t["mode"], []).append(t)
             for mode, rows in sorted(by_mode.items()):
                 n = len(rows)

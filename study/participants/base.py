@@ -56,8 +56,9 @@ class Participant(Protocol):
         while driving freely or when unknown."""
         ...
 
-    def camera_image(self) -> np.ndarray | None:
-        """The camera image shown now (read only when ``shows_camera``), None before any."""
+    def camera_image(self, which: str = "front") -> np.ndarray | None:
+        """The image of camera ``which`` ("front" or "tail") shown now (read only when
+        ``shows_camera``), None before any or when not shown."""
         ...
 
     def end_trial(self, outcome: dict[str, Any]) -> None:
@@ -81,7 +82,7 @@ class ParticipantBase:
         """Unknown: ``("", "")``."""
         return ("", "")
 
-    def camera_image(self) -> np.ndarray | None:
+    def camera_image(self, which: str = "front") -> np.ndarray | None:
         """No image shown."""
         return None
 

@@ -430,10 +430,10 @@ class HumanParticipant(ParticipantBase):
         if self.driver is not None:
             self.driver.end_trial(outcome)
 
-    def camera_image(self) -> np.ndarray | None:
-        """The camera image on the screen now (the trial loop logs it in the recording
-        instead of rendering its own), None before the first frame."""
-        return self.camera.image
+    def camera_image(self, which: str = "front") -> np.ndarray | None:
+        """The front (or tail) camera image on the screen now (the trial loop logs it in
+        the recording instead of rendering its own), None before the first frame."""
+        return self.camera.tail_image if which == "tail" else self.camera.image
 
     def close(self) -> None:
         """Stop the camera worker and close the window."""

@@ -1,10 +1,10 @@
 """Study protocols: a TOML file validated into frozen dataclasses that carry a whole study.
 
 Who takes part, which control modes are compared and how their order is counterbalanced,
-the phases of a session in order, the secondary task, scoring, analysis, and the
-participant's window, instructions and gamepad mapping (thesis sections 7.5, 7.6.1.1-
-7.6.1.3; spec section 7). :mod:`.types` holds the dataclasses, :mod:`.parse` reads and
-validates the file; storage keeps a protocol's ``text`` and ``sha256``.
+the phases of a session in order, the secondary task, scoring, analysis, the participant's
+window, instructions and gamepad mapping, and the recordings' camera frames (thesis
+sections 7.5, 7.6.1.1-7.6.1.3; spec section 7). :mod:`.types` holds the dataclasses,
+:mod:`.parse` reads and validates the file; storage keeps a protocol's ``text`` and ``sha256``.
 """
 
 from study.engine.protocol.parse import load_protocol, parse_protocol, protocol_path
@@ -37,6 +37,7 @@ from study.engine.protocol.types import (
     Phase,
     Practice,
     Protocol,
+    RecordingSettings,
     Scoring,
     StudyInfo,
     Training,
@@ -72,6 +73,7 @@ __all__ = [
     "Phase",
     "Practice",
     "Protocol",
+    "RecordingSettings",
     "Scoring",
     "StudyInfo",
     "Training",

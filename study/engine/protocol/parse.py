@@ -8,7 +8,8 @@ required, with its scenario; ``[phases.after_trial]`` instrument, weights);
 ``[secondary]`` p_correct, timeout_s, gap_s, near_miss_offsets, p_addition;
 ``[scoring]`` collision_penalty_s; ``[analysis]`` alpha, gate, posthoc, metrics,
 secondary_baseline_level; ``[ui]`` window, fullscreen, show_map, layout, ``[ui.instructions]``;
-``[input]`` deadzone, ``[input.axes]``, ``[input.buttons]``, invert.
+``[input]`` deadzone, ``[input.axes]``, ``[input.buttons]``, invert; ``[recording]``
+camera_hz, camera_width, jpeg_quality.
 The shipped files in ``protocols/`` show every table.
 """
 
@@ -57,6 +58,7 @@ from study.engine.protocol.types import (
     Phase,
     Practice,
     Protocol,
+    RecordingSettings,
     Scoring,
     StudyInfo,
     Training,
@@ -388,6 +390,23 @@ def _input(r: FieldReader) -> InputSettings:
     return s
 
 
+def _recording(r: FieldReader) -> RecordingSettings:
+    d = RecordingSettings()
+    camera_hz = r.number("camera_hz", d.camera_hz, non_negative=True)
+    if camera_hz > 20:
+        raise r.fail("camera_hz", f"must be at most 20 (the control rate), got {camera_hz!r}")
+    quality = r.integer("jpeg_quality", d.jpeg_quality, minimum=1)
+    if quality > 100:
+        raise r.fail("jpeg_quality", f"must lie in 1..100, got {quality!r}")
+    s = RecordingSettings(
+        camera_hz=float(camera_hz),
+        camera_width=r.integer("camera_width", d.camera_width, minimum=16),
+        jpeg_quality=quality,
+    )
+    r.finish()
+    return s
+
+
 def _modes(
     r: FieldReader, known: Collection[str]
 ) -> tuple[tuple[str, ...], str, bool, Mapping[str, Mapping[str, Any]]]:
@@ -487,6 +506,7 @@ def parse_protocol(
     analysis = _analysis(r.sub("analysis"))
     ui = _ui(r.sub("ui"))
     inp = _input(r.sub("input"))
+    recording = _recording(r.sub("recording"))
     r.finish()
     return Protocol(
         source=source,
@@ -501,6 +521,7 @@ def parse_protocol(
         analysis=analysis,
         ui=ui,
         input=inp,
+        recording=recording,
         text=text,
         sha256=hashlib.sha256(text.encode("utf-8")).hexdigest(),
     )

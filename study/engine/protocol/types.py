@@ -192,6 +192,15 @@ class UiSettings:
 
 
 @dataclass(frozen=True, slots=True)
+class RecordingSettings:
+    """Camera frames in each trial's rerun recording (DESIGN.md "Data": a lower rate)."""
+
+    camera_hz: float = 2.0  # [Hz] front camera (and tail, with layout "laser"); 0: none
+    camera_width: int = 160  # [px] frames rendered, or scaled down, to this width
+    jpeg_quality: int = 75  # 1-100
+
+
+@dataclass(frozen=True, slots=True)
 class InputSettings:
     """The gamepad mapping, read by the human interface."""
 
@@ -219,6 +228,7 @@ class Protocol:
     input: InputSettings
     text: str = field(repr=False)  # the file's exact text
     sha256: str  # hex SHA-256 of ``text`` in UTF-8
+    recording: RecordingSettings = field(default_factory=RecordingSettings)
 
     def __post_init__(self) -> None:
         if hashlib.sha256(self.text.encode("utf-8")).hexdigest() != self.sha256:
