@@ -130,6 +130,7 @@ def test_training_asks_questions_from_its_start(session):
     assert len(shown) >= 1 and not entered  # asked although the robot stood at A
     assert any(q for phase, _, _, q in inner.seen if phase == "training")
     assert any(shot.endswith("training_ready.png") for shot in shots)
+    assert any(shot.endswith("training_question.png") for shot in shots)
     texts = person.screen.texts_seen
     assert "Training 1 of 1" in texts
     assert any("yellow area" in t for t in texts)  # says where the questions start

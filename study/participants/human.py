@@ -138,6 +138,7 @@ class HumanParticipant(ParticipantBase):
         self._reminder = ""
         self._ended = ""  # phase of the trial that just ended (names the next page)
         self._legend: legends.Legend = ()
+        self._asked = False  # the running trial has shown a question
         self._answer_labels = ("Yes", "No")
 
     # -------------------------------------------------------------- plumbing
@@ -199,9 +200,11 @@ class HumanParticipant(ParticipantBase):
 
     def read(self, text: str) -> None:
         """A text page; returns when the participant continues."""
-        tag = f"{self._ended}_result" if self._ended else "page"
+        # right after a trial (practice): its result, under the trial's title
+        tag, title = (f"{self._ended}_result", self._title) if self._ended else ("page", "")
         self._ended = ""
-        self._text_page(tag, "", text, (lambda: self.driver.on_text(text)) if self.driver else None)
+        inject = (lambda: self.driver.on_text(text)) if self.driver else None
+        self._text_page(tag, title, text, inject)
 
     def _text_page(
         self, tag: str, title: str, body: str, inject: Callable[[], Any] | None, verb: str = ""
@@ -218,6 +221,7 @@ class HumanParticipant(ParticipantBase):
 
     def fill(self, instrument: Any, *, context: Mapping[str, Any]) -> dict[str, Any]:
         """A questionnaire page; returns item id -> answer once every required item is set."""
+        self._ended = ""
         state = FormState(instrument)
         numbers = any(item.kind == "number" for item in instrument.items)
         view = FormView(self.screen, state, legends.form_legend(self.controls, numbers=numbers))
@@ -250,6 +254,7 @@ class HumanParticipant(ParticipantBase):
         """The pairwise comparisons, one page each; pair -> chosen subscale id."""
         titles = {s.id: s.title for s in nasa_tlx.SUBSCALES}
         texts = {s.id: s.description for s in nasa_tlx.SUBSCALES}
+        self._ended = ""
         legend = legends.pairs_legend(self.controls)
         if self.driver is not None:
             self.driver.on_choose(pairs)
@@ -308,6 +313,7 @@ class HumanParticipant(ParticipantBase):
         self._confirm = ("", 0.0)
         self._view = None
         self._next_shot = 0.0
+        self._asked = False
         self._ended = ""
         self.screen.set_trial(info)
         c = self.controls
@@ -375,6 +381,9 @@ class HumanParticipant(ParticipantBase):
         if t >= self._next_shot:
             self.snapshot(f"{screen.phase}_t{int(t):03d}")
             self._next_shot = t + self.snapshot_every_s
+        if screen.question and not self._asked:  # the trial's first question
+            self._asked = True
+            self.snapshot(f"{screen.phase}_question")
         now = time.perf_counter()
         if self.status is not None and now >= self._next_status:
             self._next_status = now + self.status_every_s

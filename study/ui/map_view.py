@@ -56,6 +56,13 @@ class MapView:
         self._to_px = (0.0, 0.0, 1.0)  # x0_px, y0_px, px per m
         self._object: Box | Cylinder | None = None
         self.goals: tuple[Goal, ...] = ()
+        self._labels: dict[str, pygame.Surface] = {}
+
+    def _label(self, font: pygame.font.Font, text: str) -> pygame.Surface:
+        image = self._labels.get(text)
+        if image is None:
+            image = self._labels[text] = font.render(text, True, MARK_TEXT)
+        return image
 
     # -------------------------------------------------------------- set up
 
@@ -139,7 +146,7 @@ class MapView:
         for label, x, y in scenario_marks:
             if label not in drawn:
                 px = self.to_px(np.array([x, y]))[0]
-                image = font.render(label, True, MARK_TEXT)
+                image = self._label(font, label)
                 surface.blit(image, image.get_rect(center=(int(px[0]), int(px[1]))))
                 labels.append(label)
         if len(points):
@@ -184,7 +191,7 @@ class MapView:
                 pygame.draw.polygon(surface, GOAL, wedge, 1)
                 tip = (c[0] + reach * math.cos(g.yaw), c[1] - reach * math.sin(g.yaw))
                 pygame.draw.line(surface, GOAL, centre, tip, 2)
-            image = font.render(g.label, True, MARK_TEXT)
+            image = self._label(font, g.label)
             surface.blit(image, image.get_rect(midbottom=(centre[0], centre[1] - r - 1)))
             labels.append(g.label)
         return labels

@@ -138,6 +138,8 @@ class Screen:
         self.frames = 0
         self.frame_times: list[float] = []  # perf_counter of every flip
         self.questions = True
+        self._legends: dict[Legend, pygame.Surface] = {}
+        self._fitted: dict[tuple[str, int, str], str] = {}
         self.map = MapView(pygame.Rect(0, 0, 0, 0), show_object=show_object)
         self._marks: tuple[tuple[str, float, float], ...] = ()
         self._grid: tuple[Scenario, OccupancyGrid] | None = None
@@ -215,13 +217,20 @@ class Screen:
 
     def fit(self, value: str, width: int, *, font: str = "body") -> str:
         """``value`` cut at a word to fit ``width`` px, with an ellipsis if cut."""
+        key = (value, width, font)
+        if key in self._fitted:
+            return self._fitted[key]
         f = self.fonts[font]
-        if f.size(value)[0] <= width:
-            return value
-        words = value.split()
-        while words and f.size(" ".join(words) + " ...")[0] > width:
-            words.pop()
-        return " ".join(words) + " ..."
+        fitted = value
+        if f.size(value)[0] > width:
+            words = value.split()
+            while words and f.size(" ".join(words) + " ...")[0] > width:
+                words.pop()
+            fitted = " ".join(words) + " ..."
+        if len(self._fitted) > 100:
+            self._fitted.clear()
+        self._fitted[key] = fitted
+        return fitted
 
     def paragraph(self, value: str, rect: pygame.Rect, *, font: str = "body", colour=TEXT) -> int:
         """Wrapped text from the top of ``rect``; returns the y below the last line."""
@@ -241,14 +250,18 @@ class Screen:
         self.text(label, rect.center, anchor="center", colour=TEXT if active else DIM)
 
     def legend(self, legend: Legend) -> None:
-        """The key legend in its strip at the bottom of the window."""
+        """The key legend in its strip at the bottom of the window (drawn once per legend)."""
         if not legend:
             return
-        pygame.draw.rect(self.surface, BACKGROUND, self.legend_rect)
-        pygame.draw.line(
-            self.surface, PANEL, self.legend_rect.topleft, self.legend_rect.topright, 2
-        )
-        draw_legend(self.surface, self.legend_rect, legend, self.fonts["legend"], self.texts_seen)
+        strip = self._legends.get(legend)
+        if strip is None:
+            strip = pygame.Surface(self.legend_rect.size)
+            strip.fill(BACKGROUND)
+            pygame.draw.line(strip, PANEL, (0, 0), (strip.get_width(), 0), 2)
+            area = strip.get_rect()
+            draw_legend(strip, area, legend, self.fonts["legend"], self.texts_seen)
+            self._legends[legend] = strip
+        self.surface.blit(strip, self.legend_rect)
 
     def flip(self) -> None:
         """Show the frame."""
