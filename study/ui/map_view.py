@@ -145,9 +145,9 @@ class MapView:
         drawn = {g.label for g in self.goals}
         for label, x, y in scenario_marks:
             if label not in drawn:
-                px = self.to_px(np.array([x, y]))[0]
+                px = self.to_px(np.array([x, y]))[0]  # the label just above its point
                 image = self._label(font, label)
-                surface.blit(image, image.get_rect(center=(int(px[0]), int(px[1]))))
+                surface.blit(image, image.get_rect(midbottom=(int(px[0]), int(px[1]) - 8)))
                 labels.append(label)
         if len(points):
             for px, py in self.to_px(points).astype(int):
