@@ -178,3 +178,4 @@ def test_every_screen_has_the_legend_and_the_protocol_words(session):
     assert {"Gamepad:", "Keyboard:", "Enter", "continue", "start", "pause"} <= texts
     assert {"W S", "A D", "Q E", "P"} <= texts  # the driving keys
     assert inner.pages[0] == "Inspect the red cylinder on the way; laser hits are purple dots."
+    assert shots[-1].endswith("_page.png")  # the debrief, not under the last trial's title

@@ -457,7 +457,8 @@ class HumanParticipant(ParticipantBase):
             self.driver.end_trial(outcome)
         if info is None:
             return
-        self._ended = info.phase
+        # the runner follows a practice attempt with its result page (read)
+        self._ended = info.phase if info.phase == "practice" else ""
         key = "crashed" if outcome.get("crashed") else "times_up"
         ended = outcome.get("crashed") or outcome.get("timed_out")
         if not ended or info.phase not in ("training", "main"):
