@@ -214,6 +214,11 @@ def _phase(p: dict[str, Any]) -> str:
     kind = p.get("kind", "")
     if kind == "training":
         questions = ", with questions" if p.get("secondary") else ""
+        if p.get("secondary") and p.get("rehearsal_questions"):
+            questions += (
+                f", the first {int(p['rehearsal_questions'])} at the start of each run "
+                "wherever the robot was"
+            )
         return (
             f"training in {p.get('scenario')} ({p.get('duration_s', 0):.0f} s per mode{questions})"
         )

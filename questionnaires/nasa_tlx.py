@@ -111,9 +111,9 @@ PAIRS: tuple[tuple[str, str], ...] = tuple(itertools.combinations(SUBSCALE_IDS, 
 
 RATING_INSTRUCTIONS = (
     "Please rate the task you have just completed on each of the six scales below by "
-    "marking the point that best matches your experience. Each scale has 21 marks, "
-    "from 0 on the left to 100 on the right."
-)
+    "marking the point that best matches your experience. Each scale has 21 marks "
+    "between the two labels at its ends."
+)  # no numbers on screen (they could anchor the ratings); recorded 0..100 all the same
 PAIRS_INSTRUCTIONS = (
     "For each of the following pairs, select the one that was the more important "
     "contributor to the workload of the task you have just completed."

@@ -56,6 +56,11 @@ class TrialInfo:
     time_limit_s: float  # [s] the trial ends after this
     drive: bool = True  # False for the baseline block (no driving)
     primary: PrimarySettings | None = None  # the task's criteria (inspection arc, ...)
+    ordinal: int = 0  # position within its phase, from 0 (the screen's "k of n": k - 1)
+    of: int = 1  # trials in its phase (n)
+    attempt_of: tuple[int, int] | None = None  # practice: (this attempt, allowed), from 1
+    max_collisions: int | None = None  # practice: collisions a passing attempt may have
+    rehearsal_questions: int = 0  # questions asked at the start, wherever the robot is
 
 
 @dataclass(frozen=True, slots=True)

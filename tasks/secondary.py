@@ -229,6 +229,10 @@ class SecondaryTask:
         Defaults to ``SecondarySettings()``.
     region_triggered : bool
         Whether entries into the region start blocks (False for the baseline).
+    first_block : int
+        Questions of a block that starts at the first :meth:`update` wherever the robot
+        is (0: none); entries into the region start blocks after it as usual (training's
+        rehearsal, issue 19).
 
     Notes
     -----
@@ -244,13 +248,19 @@ class SecondaryTask:
         *,
         settings: SecondarySettings | None = None,
         region_triggered: bool = True,
+        first_block: int = 0,
     ) -> None:
         self.settings = settings if settings is not None else SecondarySettings()
         self.region_triggered = region_triggered
+        if isinstance(first_block, bool) or not isinstance(first_block, int) or first_block < 0:
+            raise ValueError(
+                f"SecondaryTask.first_block: must be an integer >= 0, got {first_block!r}"
+            )
         self._rng = rng
         self._t_last = -math.inf
         self._was_in_region = False
-        self._pending_block_size: int | None = None  # a block to start at the next update
+        # a block to start at the next update
+        self._pending_block_size: int | None = first_block or None
         self._block_index = -1
         self._block_size = 0
         self._block_active = False

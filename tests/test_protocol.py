@@ -109,7 +109,8 @@ def test_reactive_protocol_compares_manual_and_reactive_without_secondary_task()
 
 
 def test_ui_layout_defaults_to_the_map_and_is_validated():
-    text = shipped_text("pilot")
+    # the object is marked on the map, so a screen without one cannot mark it
+    text = shipped_text("pilot").replace("show_object = true", "show_object = false")
     assert load_protocol("pilot", known_modes=KNOWN).ui.layout == "map"
     laser = parse_protocol(
         text.replace("show_map = true", 'layout = "laser"\nshow_map = false', 1),
@@ -243,6 +244,28 @@ BAD = [
         "[modes.settings.reactive_bn]\nno_such_setting = 1\n[modes]",
         "modes.settings.reactive_bn",
     ),
+    # issue 19: the participant's texts and keys
+    ("inspect the {object},", "inspect the {colour},", "phases[0].text"),
+    ("inspect the {object},", "attempt {attempt},", "phases[0].text"),
+    ("show_map = true", 'show_map = true\n[ui.texts]\ntimes_up = "{k} {foo}"', "ui.texts.times_up"),
+    ("show_map = true", 'show_map = true\n[ui.texts]\ntime_up = "x"', "ui.texts.time_up"),
+    (
+        "show_map = true",
+        "show_map = true\n[ui.instructions]\nmain = '{attempt}'",
+        "ui.instructions.main",
+    ),
+    ("show_map = true", 'show_map = true\n[input.keys]\nforward = "1"', "input.keys.forward"),
+    ("show_map = true", 'show_map = true\n[input.keys]\nleft = "Up"', "input.keys.left"),
+    ("show_map = true", 'show_map = true\n[input.keys]\nyes = "w"', "input.keys.yes"),
+    ("show_map = true", 'show_map = true\n[input.names]\nyes = ""', "input.names.yes"),
+    ("show_map = true", 'show_map = true\n[input.names]\njump = "X"', "input.names.jump"),
+    ("show_map = true", "show_map = false", "ui.show_object"),
+    (
+        "secondary = true\nrehearsal",
+        "secondary = false\nrehearsal",
+        "phases[2].rehearsal_questions",
+    ),
+    ("rehearsal_questions = 3", "rehearsal_questions = -1", "phases[2].rehearsal_questions"),
 ]
 
 
@@ -256,6 +279,45 @@ def test_malformed_protocol_names_file_and_field(old, new, field):
     message = str(error.value)
     assert message.startswith(f"{source}: field '{field}'"), message
     assert len(message.splitlines()) == 1
+
+
+def test_object_placeholder_needs_an_object_in_the_main_scene():
+    text = shipped_text("pilot").replace("inspection = true", "inspection = false")
+    text = text.replace('scenario = "cluttered_room"\nroute', 'scenario = "demo_docking"\nroute')
+    text = text.replace("secondary = true\nblock_size", "secondary = false\nblock_size")
+    with pytest.raises(ValueError) as error:
+        parse_protocol(text, "/tmp/p.toml", known_modes=KNOWN)
+    assert str(error.value).startswith("/tmp/p.toml: field 'phases[0].text': uses {object}")
+    # without the placeholder the same protocol loads, its main text without an object
+    plain = parse_protocol(text.replace("inspect the {object}, ", ""), "p.toml", known_modes=KNOWN)
+    assert "{object}" not in plain.ui.instructions["main"]
+
+
+def test_protocol_texts_fill_the_scene_words_and_keep_the_trial_ones():
+    p = load_protocol("thesis-7-6", known_modes=KNOWN)
+    assert "red cylinder" in p.phases[0].text and "purple dots" in p.phases[0].text
+    assert "{attempts}" in p.ui.instructions["practice"]  # filled per attempt, when shown
+    assert p.ui.texts["times_up"] == "Time's up: this drive is over."
+    assert p.ui.show_object and p.phase("training").rehearsal_questions == 3
+    assert dict(p.input.keys) == {
+        "forward": "W", "back": "S", "left": "A", "right": "D", "turn_left": "Q",
+        "turn_right": "E", "yes": "Y", "no": "N", "pause": "P",
+    }  # fmt: skip
+    assert p.input.pad_names() == {
+        "move": "left stick", "turn": "right stick", "yes": "A", "no": "B", "pause": "Start",
+    }  # fmt: skip
+
+
+def test_bad_protocol_text_is_one_line_exit_2(tmp_path, capsys):
+    from study.cli import main
+
+    bad = tmp_path / "bad.toml"
+    bad.write_text(shipped_text("pilot").replace("inspect the {object},", "see {it},"))
+    with pytest.raises(SystemExit) as exit_info:
+        main(["plan", "--protocol", str(bad)])
+    assert exit_info.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"{bad}: field 'phases[0].text': unknown placeholder {{it}}" in err[0]
 
 
 def test_analysis_choices_match_the_analysis_package():

@@ -20,7 +20,8 @@ from study.engine.protocol import load_protocol
 from study.participants import ScriptedParticipant
 from study.participants.human import HumanParticipant
 from study.ui.camera import CameraFeed
-from study.ui.forms import FormState, FormView
+from study.ui.form_view import FormView
+from study.ui.forms import FormState
 from study.ui.inject import EventDriver, form_keys
 from study.ui.input import GamepadMapping
 
@@ -82,11 +83,9 @@ def test_optional_items_may_stay_empty_or_be_declined():
             state.row = row
             state.action("right")
     age = experience.INSTRUMENT.ids.index("age")
-    state.row = age
-    state.action("right")
-    for _ in range(200):  # past the oldest age: the last option is "prefer not to say"
-        state.action("right")
-    state.row = state.done_row
+    state.select(age)
+    state.action("left")  # one step below the (empty) entry: "prefer not to say"
+    state.select(state.done_row)
     state.action("confirm")
     assert state.done
     answers = state.answers()
@@ -136,3 +135,136 @@ def test_headless_cli_session_stores_the_injected_answers(tmp_path, seed):
             assert stored[key] == value
     names = sorted(p.name for p in shots.glob("*.png"))
     assert any("main_t" in n for n in names) and any("form_nasa_tlx" in n for n in names)
+
+
+# ---------------------------------------------------------------- issue 19: quick forms
+
+
+def _type(state: FormState, number: str) -> None:
+    for digit in number:
+        state.type_digit(digit)
+
+
+def test_age_entry_accepts_typed_digits_and_refuses_out_of_range(rng):
+    item = experience.INSTRUMENT.items[experience.INSTRUMENT.ids.index("age")]
+    row = experience.INSTRUMENT.ids.index("age")
+    inside = [int(a) for a in rng.integers(item.minimum, item.maximum + 1, size=5)]
+    # too young, or a typing slip that stops at one digit
+    outside = [int(rng.integers(0, item.minimum))]
+    for age in inside:
+        state = FormState(experience.INSTRUMENT)
+        state.select(row)
+        _type(state, str(age))
+        assert state.value(row) == age and not state.problem(row)
+    for age in outside:
+        state = FormState(experience.INSTRUMENT)
+        state.select(row)
+        _type(state, str(age))
+        assert state.value(row) is None and "from 18 to 99" in state.problem(row)
+        _answer_the_rest(state)
+        state.select(state.done_row)
+        state.action("confirm")
+        assert not state.done and state.row == row  # refused, back at the age
+        assert "from 18 to 99" in state.reminder
+        state.backspace()
+        state.backspace()  # cleared: the optional age is left unanswered
+        assert state.reminder == ""
+        state.select(state.done_row)
+        state.action("confirm")
+        assert state.done and state.answers()["age"] is None
+    # no more digits than the oldest age has; arrows step from the typed number
+    state = FormState(experience.INSTRUMENT)
+    _type(state, "305")
+    assert state.typed[row] == "30"
+    state.action("right")
+    state.action("right")
+    assert state.value(row) == 32
+    state.type_digit("4")  # after stepping, typing starts a new number
+    assert state.typed[row] == "4"
+
+
+def _answer_the_rest(state: FormState) -> None:
+    for k, item in enumerate(state.items):
+        if item.kind != "number":
+            state.select(k)
+            state.action("right")
+
+
+def test_reminder_disappears_once_every_question_is_answered(rng):
+    state = FormState(nasa_tlx.INSTRUMENT)
+    first = int(rng.integers(len(state.items)))
+    state.select(first)
+    state.action("right")
+    state.select(state.done_row)
+    state.action("confirm")
+    assert not state.done and state.reminder.startswith("Please answer every question")
+    rows = [k for k in range(len(state.items)) if k != first]
+    for k in rows[:-1]:
+        state.select(k)
+        state.action("right")
+        assert state.reminder  # still something missing
+    state.select(rows[-1])
+    state.action("left")
+    assert state.reminder == ""
+    state.select(state.done_row)
+    state.action("confirm")
+    assert state.done
+
+
+def test_choices_are_labelled_and_tlx_sliders_show_no_numbers(person):
+    state = FormState(experience.INSTRUMENT)
+    view = FormView(person.screen, state)
+    view.draw()
+    seen = person.screen.texts_seen
+    for label in ("Right", "Left", "Both equally", "Prefer not to say", "Never"):
+        assert label in seen
+    person.screen.texts_seen.clear()
+    tlx = FormState(nasa_tlx.INSTRUMENT)
+    for k in range(len(tlx.items)):
+        tlx.select(k)
+        for _ in range(k + 1):
+            tlx.action("right")
+    FormView(person.screen, tlx).draw()
+    drawn = person.screen.texts_seen
+    assert "Very Low" in drawn and "Very High" in drawn
+    assert not [t for t in drawn if t.strip().isdigit()]  # no rating value anywhere
+
+
+def test_form_rows_and_frames_do_not_overlap(person):
+    for instrument in (experience.INSTRUMENT, nasa_tlx.INSTRUMENT):
+        state = FormState(instrument)
+        view = FormView(person.screen, state)
+        view.draw()
+        rows = view.rows
+        for a, b in zip(rows, rows[1:], strict=False):
+            assert a.bottom <= b.top
+        for k, boxes in enumerate(view.options):
+            for box in boxes:
+                assert rows[k].contains(box)  # every answer inside its row's frame
+        assert rows[-1].bottom <= view.done_button.top
+        assert view.done_button.bottom <= person.screen.legend_rect.top
+
+
+def test_a_held_direction_repeats(seed):
+    from study.ui.input import REPEAT_DELAY_S, REPEAT_EVERY_S, NavRepeat
+
+    repeat = NavRepeat()
+    t0 = float(seed % 1000)
+    steps = 0
+    t = t0
+    while t < t0 + 1.0:
+        steps += len(repeat.step(t, {"right"}))
+        t += 0.01
+    assert steps == pytest.approx((1.0 - REPEAT_DELAY_S) / REPEAT_EVERY_S, abs=1.5)
+    assert repeat.step(t, set()) == [] and repeat.step(t + 0.01, {"right"}) == []  # let go
+
+
+def test_a_held_arrow_key_counts_as_held():
+    from study.ui.input import InputState
+
+    protocol = load_protocol("pilot")
+    state = InputState(GamepadMapping.from_settings(protocol.input), protocol.input.keys)
+    state.handle(pygame.event.Event(pygame.KEYDOWN, key=pygame.K_RIGHT, mod=0, unicode=""))
+    assert state.held_nav() == {"right"}
+    state.handle(pygame.event.Event(pygame.KEYUP, key=pygame.K_RIGHT, mod=0, unicode=""))
+    assert state.held_nav() == set()

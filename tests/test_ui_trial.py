@@ -62,6 +62,9 @@ class KeyDriver:
     def on_ready(self, info) -> None:
         post_key(pygame.K_RETURN)
 
+    def on_page(self) -> None:
+        post_key(pygame.K_RETURN)
+
     def begin_trial(self, info) -> None:
         self.ticks = 0
 

@@ -45,6 +45,7 @@ from study.engine.protocol import (
     Protocol,
     Training,
 )
+from study.engine.texts import practice_feedback
 from study.engine.trial import (
     ExperimenterControl,
     FreeClock,
@@ -61,13 +62,6 @@ from tasks.primary import PrimarySettings, route_from_points
 
 NO_LEARNING = "the participant does not learn (participant.learns is False)"
 _PHASE_INDEX = {"training": 1, "practice": 2, "baseline": 3, "main": 4}
-DEFAULT_INSTRUCTIONS = {
-    "training": "Training: drive freely and get used to the robot.",
-    "practice": "Practice: drive to the goal without touching anything.",
-    "baseline": "Answer the questions: is the shown result correct? Press Yes or No.",
-    "main": "Drive from A to B and back to A; inspect the red object on the way; "
-    "answer the questions when they appear.",
-}
 
 
 @dataclass(frozen=True, slots=True)
@@ -215,7 +209,7 @@ class SessionRunner:
             )
 
     def _instruction(self, kind: str) -> str:
-        return self.protocol.ui.instructions.get(kind, DEFAULT_INSTRUCTIONS.get(kind, ""))
+        return self.protocol.ui.instructions.get(kind, "")
 
     # -------------------------------------------------------------- trials
 
@@ -340,6 +334,8 @@ class SessionRunner:
                 ),
                 secondary=self.protocol.secondary_settings if phase.secondary else None,
                 limit_is_duration=True,
+                of=len(phase.modes),
+                rehearsal_questions=phase.rehearsal_questions,
             )
             if self._run(spec, phase.scenario).status not in TRIAL_FINISHED:
                 return False
@@ -352,7 +348,6 @@ class SessionRunner:
             done = [t for t in self._trials("practice", ordinal) if t.status in TRIAL_FINISHED]
             passed = any(t.outcome.get("passed") for t in done)
             attempts = len(done)
-            feedback = ""
             while not passed and attempts < phase.max_attempts:
                 spec = self._spec(
                     "practice",
@@ -365,15 +360,24 @@ class SessionRunner:
                         collision_penalty_s=self.protocol.scoring.collision_penalty_s,
                     ),
                     secondary=self.protocol.secondary_settings if phase.secondary else None,
-                    feedback=feedback,
+                    of=len(modes),
+                    attempt_of=(attempts + 1, phase.max_attempts),
                 )
                 result = self._run(spec, phase.scenario, max_collisions=phase.max_collisions)
                 if result.status not in TRIAL_FINISHED:
                     return False
                 attempts += 1
                 passed = bool(result.outcome.get("passed"))
-                feedback = _practice_feedback(result.outcome, phase)
-                self.participant.read(feedback)
+                self.participant.read(
+                    practice_feedback(
+                        result.outcome,
+                        self.protocol.ui.texts,
+                        attempt=attempts,
+                        attempts=phase.max_attempts,
+                        time_limit_s=phase.time_limit_s,
+                        max_collisions=phase.max_collisions,
+                    )  # fmt: skip
+                )
             if not passed and phase.on_fail == "exclude":
                 return None
         return True
@@ -410,6 +414,7 @@ class SessionRunner:
                     ),
                     secondary=self.protocol.secondary_settings if phase.secondary else None,
                     end_on_collision=phase.end_on_collision,
+                    of=len(self.order),
                 )
                 result = self._run(spec, phase.scenario)
                 if result.status not in TRIAL_FINISHED:
@@ -503,17 +508,6 @@ def _trial_line(code: str, spec: TrialSpec, result: TrialResult) -> str:
     if "passed" in out:
         line += ", passed" if out["passed"] else ", not passed"
     return line
-
-
-def _practice_feedback(outcome: dict[str, Any], phase: Practice) -> str:
-    if outcome.get("passed"):
-        return "Practice passed."
-    reasons = []
-    if not outcome.get("completed"):
-        reasons.append(f"the goal was not reached within {phase.time_limit_s:g} s")
-    if (outcome.get("collisions") or 0) > phase.max_collisions:
-        reasons.append(f"{outcome['collisions']} collision(s)")
-    return "Practice not passed: " + " and ".join(reasons or ["try again"]) + "."
 
 
 # phase type -> its step; a step returns True (go on), False (aborted) or None (excluded)

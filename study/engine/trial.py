@@ -83,13 +83,16 @@ class TrialSpec:
     secondary: SecondarySettings | None  # None: no questions
     baseline: bool = False  # the secondary task alone, without driving
     end_on_collision: bool = False
-    feedback: str = ""  # shown on the screen from the start (practice)
+    feedback: str = ""  # shown on the screen from the start
     camera_hz: float = 0.0  # [Hz] camera frames in the recording; 0: none
     camera_views: tuple[str, ...] = ("front",)  # recorded cameras: "front", "tail"
     recording: RecorderSettings = field(default_factory=RecorderSettings)  # rates, JPEG
     # the time limit is the trial's planned length (training), so reaching it completes
     # the trial; otherwise a trial that reaches it ends "timed_out"
     limit_is_duration: bool = False
+    of: int = 1  # trials in its phase (the participant's "k of n")
+    attempt_of: tuple[int, int] | None = None  # practice: (this attempt, allowed), from 1
+    rehearsal_questions: int = 0  # questions at the start, wherever the robot is (training)
 
     def __post_init__(self) -> None:
         # a trial must be able to end: by its driving task (which times out) or, for the
@@ -253,6 +256,11 @@ class TrialLoop:
                 time_limit_s=self.time_limit,
                 drive=not spec.baseline,
                 primary=spec.primary,
+                ordinal=spec.ordinal,
+                of=spec.of,
+                attempt_of=spec.attempt_of,
+                max_collisions=self.max_collisions,
+                rehearsal_questions=(spec.rehearsal_questions if self.secondary is not None else 0),
             )
         )
 
@@ -412,6 +420,9 @@ class TrialLoop:
                     done = True
         if spec.end_on_collision and started and not done:
             done = self.crashed = True  # Sec. 7.5: "the crash of the quadrotor"
+        limit = self.max_collisions
+        if limit is not None and primary is not None and primary.collisions > limit:
+            done = True  # a practice attempt that can no longer pass ends at once
         if t >= self.time_limit + 1.0:  # a safety net; PrimaryTask times out first
             done = True
         return done
@@ -502,7 +513,7 @@ def _secondary_task(
     if spec.baseline:
         return SecondaryTask.baseline(rng, settings=spec.secondary)
     if len(scenario.question_region):
-        return SecondaryTask(rng, settings=spec.secondary)
+        return SecondaryTask(rng, settings=spec.secondary, first_block=spec.rehearsal_questions)
     return None
 
 

@@ -1,14 +1,19 @@
 """A person at the pygame screen (issue 5): :class:`HumanParticipant` implements the
 participant interface (:mod:`study.participants.base`) with the window of :mod:`study.ui`.
 
-- ``read(text)``: a text page (briefing, practice feedback, debrief), continue with A,
-  Enter, Space or Y.
+- ``read(text)``: a text page (briefing, practice feedback, debrief), continue with the
+  gamepad's Yes button, Enter, Space or the Yes key.
 - ``fill(instrument)``: the questionnaire page of :mod:`study.ui.forms`; ``choose(pairs)``:
   the NASA-TLX pairwise comparisons, one page per pair.
 - ``attach(world, event)`` (the trial loop's hook) and ``begin_trial(info)``: the map of the
-  trial's scenario, the camera feed on its world, then a "get ready" page that says what the
-  trial asks (route, inspection, questions, time limit; never the mode) and serves as the
-  break between trials; the trial starts when the participant presses A / Enter.
+  trial's scenario, the camera feed on its world, then a "get ready" page, its title the
+  trial's place ("Training 2 of 3", "Practice 1 of 3, attempt 1 of 2") and its body the
+  protocol's instruction for the phase (never the mode), which serves as the break between
+  trials; the trial starts when the participant presses the Yes button or Enter.
+- ``end_trial(outcome)``: after a trial that its time limit ended (training, main) a
+  "time's up" page, after one a collision ended (``end_on_collision``) a page saying so.
+- Every screen carries the key legend of :mod:`study.ui.legend`; every text shown is the
+  protocol's (``[ui.instructions]``, ``[ui.texts]``).
 - ``act(obs, screen)``: pump the input events, draw the driving screen, return the stick's
   command, a Yes/No press and the pause button. :meth:`HumanParticipant.clock` gives the
   :class:`study.ui.clock.UiClock` that draws more frames between ticks.
@@ -30,50 +35,23 @@ from questionnaires import nasa_tlx
 from sim.occupancy import OccupancyGrid, build_grid
 from sim.types import Observation
 from study.engine.protocol import InputSettings, UiSettings
+from study.engine.texts import fill, first_sentence, trial_title, trial_values
 from study.participants.base import ParticipantBase
 from study.types import ParticipantInput, ScreenState, TrialInfo
+from study.ui import legend as legends
 from study.ui.camera import CameraFeed
 from study.ui.clock import UiClock
-from study.ui.forms import FormState, FormView, PairView
-from study.ui.input import GamepadMapping, InputState
+from study.ui.form_view import FormView, PairView
+from study.ui.forms import FormState
+from study.ui.input import DIGIT_KEYS, GamepadMapping, InputState, NavRepeat
 from study.ui.screen import CONFIRM_S, Screen, TrialView
 
-CONTINUE = "Press A on the gamepad (or Enter) to continue."
 LOST = (
     "The gamepad was disconnected. The trial is paused. Please plug it in again: the trial "
     "continues as soon as it is back."
 )
-PAUSED = "Paused. Please wait for the experimenter."
-_PHASE_TITLES = {
-    "training": "Training",
-    "practice": "Practice",
-    "baseline": "Questions only",
-    "main": "Trial",
-}
 _ZERO3 = np.zeros(3)
 _ZERO3.setflags(write=False)
-
-
-def _route_text(info: TrialInfo) -> str:
-    dock = info.scenario.dock
-    under = dock is not None and bool(dock.table)
-    names = {"dock": "B (under the table)" if under else "B", "start": "A"}
-    stops = [names.get(r, r) for r in info.route]
-    if not info.drive:
-        return (
-            "The robot stands still. Questions appear at the bottom of the screen: is the "
-            "shown result correct? Answer Yes or No as quickly and accurately as you can."
-        )
-    text = "Drive the robot from A to " + " and then to ".join(stops) + "." if stops else ""
-    if info.phase == "training":
-        text = "Drive freely and get used to the robot."
-    if info.inspection:
-        text += " On the way, inspect the red object: drive around it so you can see it."
-    if info.secondary:
-        text += " Questions appear at the bottom of the screen: answer them with Yes or No."
-    if info.time_limit_s < 1e6:
-        text += f" You have {info.time_limit_s:.0f} s."
-    return text.strip()
 
 
 class HumanParticipant(ParticipantBase):
@@ -120,7 +98,8 @@ class HumanParticipant(ParticipantBase):
     ) -> None:
         self.ui = ui
         self.mapping = GamepadMapping.from_settings(inputs)
-        self.input = InputState(self.mapping)
+        self.input = InputState(self.mapping, inputs.keys)
+        self.controls = legends.Controls.from_settings(inputs)
         self.driver = driver
         self.parameters: dict[str, Any] = {"interface": "pygame"}
         if driver is not None:
@@ -132,8 +111,9 @@ class HumanParticipant(ParticipantBase):
         self.status_every_s = status_every_s
         self.fps = fps
         self.screen = Screen(
-            ui.window, fullscreen=ui.fullscreen, show_map=ui.show_map, layout=ui.layout
-        )
+            ui.window, fullscreen=ui.fullscreen, show_map=ui.show_map, layout=ui.layout,
+            show_object=ui.show_object,
+        )  # fmt: skip
         pygame.joystick.init()
         # the tail camera is rendered only for the screen that shows it (Sec. 7.5)
         self.camera = camera if camera is not None else CameraFeed()
@@ -154,6 +134,12 @@ class HumanParticipant(ParticipantBase):
         self._next_status = 0.0
         self._trial_frames = (0, 0.0, 0)  # screen frames, wall time, camera frames at start
         self._page_clock = pygame.time.Clock()
+        self._title = ""  # the running trial's title and one-line reminder
+        self._reminder = ""
+        self._ended = ""  # phase of the trial that just ended (names the next page)
+        self._legend: legends.Legend = ()
+        self._asked = False  # the running trial has shown a question
+        self._answer_labels = ("Yes", "No")
 
     # -------------------------------------------------------------- plumbing
 
@@ -183,21 +169,29 @@ class HumanParticipant(ParticipantBase):
         self,
         tag: str,
         draw: Callable[[], None],
-        handle: Callable[[pygame.event.Event, list[str]], bool],
+        handle: Callable[[pygame.event.Event | None, list[str]], bool],
         inject: Callable[[], Any] | None = None,
+        *,
+        repeat: bool = False,
     ) -> Any:
-        """Run one page until ``handle`` says it is done; returns what ``inject`` returned."""
+        """Run one page until ``handle`` says it is done; returns what ``inject`` returned.
+        ``repeat``: held directions repeat (forms), passed to ``handle`` with no event."""
         self._pump(keep=False)  # presses from before the page do not count
         self._pending.clear()
         injected = inject() if inject is not None else None
         draw()
         self.snapshot(tag)
+        repeats = NavRepeat()
         while True:
             for event in pygame.event.get():
                 actions = self.input.handle(event)
                 if "quit" in actions:
                     raise KeyboardInterrupt("the participant's window was closed")
                 if handle(event, actions):
+                    return injected
+            if repeat:
+                steps = repeats.step(time.perf_counter(), self.input.held_nav())
+                if steps and handle(None, steps):
                     return injected
             draw()
             self._page_clock.tick(self.fps)
@@ -206,25 +200,40 @@ class HumanParticipant(ParticipantBase):
 
     def read(self, text: str) -> None:
         """A text page; returns when the participant continues."""
+        # right after a trial (practice): its result, under the trial's title
+        tag, title = (f"{self._ended}_result", self._title) if self._ended else ("page", "")
+        self._ended = ""
+        inject = (lambda: self.driver.on_text(text)) if self.driver else None
+        self._text_page(tag, title, text, inject)
 
-        def handle(event: pygame.event.Event, actions: list[str]) -> bool:
-            return "confirm" in actions or "yes" in actions or event.type == pygame.MOUSEBUTTONDOWN
+    def _text_page(
+        self, tag: str, title: str, body: str, inject: Callable[[], Any] | None, verb: str = ""
+    ) -> None:
+        """A page of text that the Yes button, Enter (or a click) ends."""
+        c, verb = self.controls, verb or "continue"
 
-        self._page(
-            "text",
-            lambda: self.screen.draw_page("", text, CONTINUE),
-            handle,
-            (lambda: self.driver.on_text(text)) if self.driver is not None else None,
-        )
+        def handle(event: pygame.event.Event | None, actions: list[str]) -> bool:
+            click = event is not None and event.type == pygame.MOUSEBUTTONDOWN
+            return "confirm" in actions or "yes" in actions or click
+
+        legend, prompt = legends.page_legend(c, verb), legends.prompt_text(c, verb)
+        self._page(tag, lambda: self.screen.draw_page(title, body, legend, prompt), handle, inject)
 
     def fill(self, instrument: Any, *, context: Mapping[str, Any]) -> dict[str, Any]:
         """A questionnaire page; returns item id -> answer once every required item is set."""
+        self._ended = ""
         state = FormState(instrument)
-        view = FormView(self.screen, state)
+        numbers = any(item.kind == "number" for item in instrument.items)
+        view = FormView(self.screen, state, legends.form_legend(self.controls, numbers=numbers))
 
-        def handle(event: pygame.event.Event, actions: list[str]) -> bool:
-            if event.type == pygame.MOUSEBUTTONDOWN and event.button == 1:
+        def handle(event: pygame.event.Event | None, actions: list[str]) -> bool:
+            if event is not None and event.type == pygame.MOUSEBUTTONDOWN and event.button == 1:
                 view.click(event.pos)
+            if event is not None and event.type == pygame.KEYDOWN:
+                if event.key in DIGIT_KEYS:
+                    state.type_digit(DIGIT_KEYS[event.key])
+                elif event.key in (pygame.K_BACKSPACE, pygame.K_DELETE):
+                    state.backspace()
             for a in actions:
                 state.action(a)
             return state.done
@@ -236,7 +245,7 @@ class HumanParticipant(ParticipantBase):
             def inject() -> Any:
                 return driver.on_form(instrument, context, FormState(instrument))
 
-        self._page(f"form_{instrument.id}", view.draw, handle, inject)
+        self._page(f"form_{instrument.id}", view.draw, handle, inject, repeat=True)
         view.draw()
         self.snapshot(f"form_{instrument.id}_done")
         return state.answers()
@@ -245,17 +254,19 @@ class HumanParticipant(ParticipantBase):
         """The pairwise comparisons, one page each; pair -> chosen subscale id."""
         titles = {s.id: s.title for s in nasa_tlx.SUBSCALES}
         texts = {s.id: s.description for s in nasa_tlx.SUBSCALES}
+        self._ended = ""
+        legend = legends.pairs_legend(self.controls)
         if self.driver is not None:
             self.driver.on_choose(pairs)
         out: dict[tuple[str, str], str] = {}
         for k, pair in enumerate(pairs):
-            view = PairView(self.screen, pair, titles, texts)
+            view = PairView(self.screen, pair, titles, texts, legend)
             progress = f"Pair {k + 1} of {len(pairs)}"
 
             def handle(
-                event: pygame.event.Event, actions: list[str], view: PairView = view
+                event: pygame.event.Event | None, actions: list[str], view: PairView = view
             ) -> bool:
-                if event.type == pygame.MOUSEBUTTONDOWN and event.button == 1:
+                if event is not None and event.type == pygame.MOUSEBUTTONDOWN and event.button == 1:
                     view.click(event.pos)
                 for a in actions:
                     view.action(a)
@@ -291,7 +302,8 @@ class HumanParticipant(ParticipantBase):
         self.camera.set_world(world)
 
     def begin_trial(self, info: TrialInfo) -> None:
-        """A "get ready" page saying what the trial asks; the trial starts on A / Enter."""
+        """A "get ready" page saying what the trial asks; the trial starts on the Yes button
+        or Enter."""
         self._info = info
         robot = info.scenario.robot
         self._footprint = robot.footprint()
@@ -301,22 +313,25 @@ class HumanParticipant(ParticipantBase):
         self._confirm = ("", 0.0)
         self._view = None
         self._next_shot = 0.0
-        title = _PHASE_TITLES.get(info.phase, info.phase.title())
-        body = _route_text(info)
+        self._asked = False
+        self._ended = ""
+        self.screen.set_trial(info)
+        c = self.controls
+        self._legend = legends.drive_legend(c, drive=info.drive, questions=info.secondary)
+        self._answer_labels = (
+            f"Yes  ({c.pad['yes']} / {c.keys['yes']})",
+            f"No  ({c.pad['no']} / {c.keys['no']})",
+        )
+        texts, values = self.ui.texts, trial_values(info)
+        title = self._title = trial_title(info, texts)
+        body = fill(self.ui.instructions.get(info.phase, ""), values)
+        self._reminder = first_sentence(body)
         if info.phase == "main":
-            body += "\n\nTake a short break if you like."
+            body += "\n\n" + fill(texts["break"], values)
         if self.driver is not None:
             self.driver.begin_trial(info)
-
-        def handle(event: pygame.event.Event, actions: list[str]) -> bool:
-            return "confirm" in actions or "yes" in actions
-
-        self._page(
-            f"{info.phase}_ready",
-            lambda: self.screen.draw_page(title, body, "Press A (or Enter) to start."),
-            handle,
-            (lambda: self.driver.on_ready(info)) if self.driver is not None else None,
-        )
+        inject = (lambda: self.driver.on_ready(info)) if self.driver is not None else None
+        self._text_page(f"{info.phase}_ready", title, body, inject, verb="start")
         self._pending.clear()
         self._trial_frames = (self.screen.frames, time.perf_counter(), self.camera.frames)
         self._next_status = time.perf_counter() + self.status_every_s
@@ -366,6 +381,9 @@ class HumanParticipant(ParticipantBase):
         if t >= self._next_shot:
             self.snapshot(f"{screen.phase}_t{int(t):03d}")
             self._next_shot = t + self.snapshot_every_s
+        if screen.question and not self._asked:  # the trial's first question
+            self._asked = True
+            self.snapshot(f"{screen.phase}_question")
         now = time.perf_counter()
         if self.status is not None and now >= self._next_status:
             self._next_status = now + self.status_every_s
@@ -382,7 +400,7 @@ class HumanParticipant(ParticipantBase):
         self.camera.update()
         overlay = self._overlay
         if not overlay and view.screen.paused:
-            overlay = PAUSED
+            overlay = f"{self.ui.texts['paused']} {legends.resume_text(self.controls)}"
         text, since = self._confirm
         confirmation = text if text and time.perf_counter() - since < CONFIRM_S else ""
         drive = self._info is None or self._info.drive
@@ -397,6 +415,11 @@ class HumanParticipant(ParticipantBase):
                 scan=view.scan,
                 confirmation=confirmation,
                 overlay=overlay,
+                title=self._title,
+                reminder=self._reminder,
+                legend=self._legend,
+                yes_label=self._answer_labels[0],
+                no_label=self._answer_labels[1],
             ),
             footprint=self._footprint,
         )
@@ -423,12 +446,26 @@ class HumanParticipant(ParticipantBase):
         return self.driver.intention() if self.driver is not None else ("", "")
 
     def end_trial(self, outcome: dict[str, Any]) -> None:
+        """The trial's last frame; a "time's up" page when its time limit ended a training or
+        main trial, a page saying so when a collision ended it (``end_on_collision``)."""
+        info = self._info
         if self._view is not None:
             self.snapshot(f"{self._view.screen.phase}_end")
         self.world = None
         self._event = None
         if self.driver is not None:
             self.driver.end_trial(outcome)
+        if info is None:
+            return
+        # the runner follows a practice attempt with its result page (read)
+        self._ended = info.phase if info.phase == "practice" else ""
+        key = "crashed" if outcome.get("crashed") else "times_up"
+        ended = outcome.get("crashed") or outcome.get("timed_out")
+        if not ended or info.phase not in ("training", "main"):
+            return
+        text = fill(self.ui.texts[key], trial_values(info))
+        inject = self.driver.on_page if self.driver is not None else None
+        self._text_page(f"{info.phase}_{key}", self._title, text, inject)
 
     def camera_image(self, which: str = "front") -> np.ndarray | None:
         """The front (or tail) camera image on the screen now (the trial loop logs it in

@@ -11,9 +11,9 @@ reach the interface only as the events a person would cause:
   command the interface derives equals the participant's up to float rounding and the robot's
   limits (a translation faster than ``max_speed`` is clipped to the unit stick disc);
 - answers and the pause button: ``JOYBUTTONDOWN`` / ``JOYBUTTONUP`` of the mapped buttons;
-- text pages: the Enter key; questionnaires: arrow keys and Enter, exactly the presses the
-  form needs to reach each answer (:class:`study.ui.forms.FormState`); pairwise comparisons:
-  left or right and Enter.
+- text pages (and the "time's up" page): the Enter key; questionnaires: the digits of a
+  number, arrow keys and Enter, exactly the presses the form needs to reach each answer
+  (:class:`study.ui.forms.FormState`); pairwise comparisons: left or right and Enter.
 
 :class:`EventDriver` is generic over any object with the participant interface
 (``study.participants.base.Participant``); ``intention`` and ``end_trial`` are passed on.
@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 import pygame
 
-from questionnaires.base import Instrument
+from questionnaires.base import DECLINE, Instrument
 from sim.types import Observation
 from study.participants.base import Participant
 from study.types import ScreenState, TrialInfo
@@ -62,11 +62,15 @@ def post_device(added: bool, instance: int = VIRTUAL_ID, name: str = VIRTUAL_NAM
 
 
 def form_keys(state: FormState, answers: Mapping[str, object]) -> list[int]:
-    """The key presses that fill ``state`` (fresh) with ``answers`` and finish it."""
+    """The key presses that fill ``state`` (fresh) with ``answers`` and finish it: a
+    number's digits typed (left from empty declines it), an option reached with the arrows."""
     keys: list[int] = []
     for row, item in enumerate(state.instrument.items):
         value = answers.get(item.id)
-        if value is not None:
+        if value is not None and item.kind == "number":
+            digits = [getattr(pygame, f"K_{d}") for d in str(value)]
+            keys.extend([pygame.K_LEFT] if value == DECLINE else digits)
+        elif value is not None:
             values = [v for v, _ in state.options[row]]
             target = values.index(value)
             start = state.start_index(row)
@@ -108,6 +112,10 @@ class EventDriver:
         post_key(pygame.K_RETURN)
 
     def on_ready(self, info: TrialInfo) -> None:
+        post_key(pygame.K_RETURN)
+
+    def on_page(self) -> None:
+        """A page that needs no decision (time's up): go on."""
         post_key(pygame.K_RETURN)
 
     def on_form(

@@ -17,9 +17,10 @@ Decisions where the spec is silent:
   outside the deadzone is rescaled to [0, 1] so there is no jump at its edge.
 - Stick to command. Full deflection is the robot's ``max_speed`` (norm of the translation,
   clipped to the unit disc) and ``max_yaw_rate``.
-- Keyboard. W/S forwards/backwards, A/D left/right, Q/E turn left/right (full deflection
-  while held), Y/N (or the gamepad's Yes/No buttons) answer, P is the pause button; in forms
-  the arrow keys or the D-pad / left stick move and Enter, Space or Yes confirm.
+- Keyboard. The protocol's ``[input.keys]`` (default W/S forwards/backwards, A/D left/right,
+  Q/E turn left/right, full deflection while held; Y/N answer, as do the gamepad's Yes/No
+  buttons; P is the pause button); in forms the arrow keys or the D-pad / left stick move
+  and Enter, Space or Yes confirm, and a direction held repeats (:class:`NavRepeat`).
 - Hot-plug. A pad added at any time is opened and used; one removed while it was in use is
   reported as ``device_lost`` and the next one added as ``device_back``.
 """
@@ -33,7 +34,13 @@ from dataclasses import dataclass, field
 import numpy as np
 import pygame
 
-from study.engine.protocol import DEFAULT_AXES, DEFAULT_BUTTONS, DEFAULT_INVERT, InputSettings
+from study.engine.protocol import (
+    DEFAULT_AXES,
+    DEFAULT_BUTTONS,
+    DEFAULT_INVERT,
+    DEFAULT_KEYS,
+    InputSettings,
+)
 
 # Known layouts as SDL2 / pygame numbers them, keyed by a lower-case fragment of the name.
 LAYOUTS: dict[str, tuple[dict[str, int], dict[str, int]]] = {
@@ -42,11 +49,26 @@ LAYOUTS: dict[str, tuple[dict[str, int], dict[str, int]]] = {
     # Xbox / XInput pads through SDL's XInput backend on Windows: right stick x = 2
     "xinput": ({"vy": 0, "vx": 1, "yaw": 2}, {"yes": 0, "no": 1, "pause": 7}),
 }
-# Button labels of the layouts for the screen (what is printed on the pad).
-YES_LABEL, NO_LABEL = "A", "B"
-KEY_YES, KEY_NO = pygame.K_y, pygame.K_n
 ACTIONS = ("yes", "no", "pause", "up", "down", "left", "right", "confirm", "quit")
 _NAV_THRESHOLD = 0.6  # stick deflection that counts as one step in a form
+REPEAT_DELAY_S = 0.4  # [s] a held direction repeats after this ...
+REPEAT_EVERY_S = 0.07  # [s] ... once per this
+NAV = ("up", "down", "left", "right")
+_NAV_KEYS = {
+    pygame.K_UP: "up",
+    pygame.K_DOWN: "down",
+    pygame.K_LEFT: "left",
+    pygame.K_RIGHT: "right",
+}
+DIGIT_KEYS: dict[int, str] = {
+    **{getattr(pygame, f"K_{d}"): str(d) for d in range(10)},
+    **{getattr(pygame, f"K_KP{d}"): str(d) for d in range(10)},
+}
+
+
+def key_code(letter: str) -> int:
+    """pygame's key code of a letter ``"W"`` (the protocol's ``[input.keys]``)."""
+    return int(getattr(pygame, f"K_{letter.lower()}"))
 
 
 @dataclass(frozen=True, slots=True)
@@ -109,6 +131,7 @@ class _Device:
     joystick: object | None = None  # pygame.joystick.JoystickType of a real pad
     axes: dict[int, float] = field(default_factory=dict)
     nav: dict[str, bool] = field(default_factory=dict)  # stick held past the nav threshold
+    hat: tuple[int, int] = (0, 0)  # the D-pad's position
 
 
 class InputState:
@@ -118,10 +141,20 @@ class InputState:
     ----------
     mapping : GamepadMapping
         The protocol's mapping (refined per device by :meth:`GamepadMapping.for_device`).
+    keys : mapping, optional
+        The protocol's ``[input.keys]`` (action -> letter); default W/S/A/D/Q/E, Y/N, P.
     """
 
-    def __init__(self, mapping: GamepadMapping) -> None:
+    def __init__(self, mapping: GamepadMapping, keys: Mapping[str, str] = DEFAULT_KEYS) -> None:
         self.mapping = mapping
+        self.key_codes = {action: key_code(letter) for action, letter in keys.items()}
+        k = self.key_codes
+        self._key_actions: dict[int, list[str]] = {
+            **_KEY_ACTIONS,
+            k["yes"]: ["yes"],
+            k["no"]: ["no"],
+            k["pause"]: ["pause"],
+        }
         self.devices: dict[int, _Device] = {}
         self.keys: set[int] = set()
         self.lost: list[str] = []  # names of pads removed and not yet replaced
@@ -148,7 +181,7 @@ class InputState:
             return []
         if kind == pygame.KEYDOWN:
             self.keys.add(event.key)
-            return _KEY_ACTIONS.get(event.key, [])
+            return self._key_actions.get(event.key, [])
         if kind == pygame.KEYUP:
             self.keys.discard(event.key)
             return []
@@ -165,6 +198,7 @@ class InputState:
                     out.append(name)
         elif kind == pygame.JOYHATMOTION:
             hx, hy = event.value
+            device.hat = (int(hx), int(hy))
             out.extend(
                 a
                 for a, on in (("left", hx < 0), ("right", hx > 0), ("up", hy > 0), ("down", hy < 0))
@@ -212,15 +246,25 @@ class InputState:
     def has_gamepad(self) -> bool:
         return bool(self.devices)
 
+    def held_nav(self) -> set[str]:
+        """The form directions held now: arrow keys, D-pads and left sticks."""
+        held = {name for key, name in _NAV_KEYS.items() if key in self.keys}
+        for device in self.devices.values():
+            hx, hy = device.hat
+            held |= {a for a, on in (("left", hx < 0), ("right", hx > 0), ("up", hy > 0),
+                                     ("down", hy < 0)) if on}  # fmt: skip
+            held |= {a for a, on in device.nav.items() if on}
+        return held
+
     def stick(self) -> np.ndarray:
         """Deflection ``(forwards, left, turn left)`` (3,) in [-1, 1], all devices and keys."""
         total = np.zeros(3)
         for device in self.devices.values():
             total += _device_stick(device)
-        keys = self.keys
-        total[0] += (pygame.K_w in keys) - (pygame.K_s in keys)
-        total[1] += (pygame.K_a in keys) - (pygame.K_d in keys)
-        total[2] += (pygame.K_q in keys) - (pygame.K_e in keys)
+        keys, k = self.keys, self.key_codes
+        total[0] += (k["forward"] in keys) - (k["back"] in keys)
+        total[1] += (k["left"] in keys) - (k["right"] in keys)
+        total[2] += (k["turn_left"] in keys) - (k["turn_right"] in keys)
         m = math.hypot(total[0], total[1])
         if m > 1.0:
             total[:2] /= m
@@ -250,10 +294,30 @@ def _device_stick(device: _Device) -> np.ndarray:
     return out
 
 
+class NavRepeat:
+    """A form direction held down repeats: after :data:`REPEAT_DELAY_S`, one step every
+    :data:`REPEAT_EVERY_S` (keyboard, D-pad and stick alike; the first step is the press
+    itself). Call :meth:`step` once per frame."""
+
+    def __init__(self) -> None:
+        self._since: dict[str, float] = {}  # direction -> when its next repeat is due
+
+    def step(self, now: float, held: set[str]) -> list[str]:
+        """The repeated steps due at ``now`` [s] for the directions ``held``."""
+        out = []
+        for name in NAV:
+            if name not in held:
+                self._since.pop(name, None)
+                continue
+            due = self._since.setdefault(name, now + REPEAT_DELAY_S)
+            if now >= due:  # one step per call: a stalled frame does not burst
+                out.append(name)
+                self._since[name] = max(due, now - REPEAT_EVERY_S) + REPEAT_EVERY_S
+        return out
+
+
+# Keys of the pages and forms; the protocol's answer and pause keys are added per instance.
 _KEY_ACTIONS: dict[int, list[str]] = {
-    KEY_YES: ["yes"],
-    KEY_NO: ["no"],
-    pygame.K_p: ["pause"],
     pygame.K_UP: ["up"],
     pygame.K_DOWN: ["down"],
     pygame.K_LEFT: ["left"],

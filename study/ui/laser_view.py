@@ -3,8 +3,8 @@ Fig. 7.42 left: "the laser scan reflections from the LRF with the robot model ..
 starting from the robot represents the user input via joystick").
 
 The robot stays in the centre of the pane with its heading pointing up (robot x up, robot y
-to the left), as rviz shows a scan in the robot's own frame; the hits of both lasers are red
-dots, faint rings every metre give the scale, the footprint is drawn as the robot model with
+to the left), as rviz shows a scan in the robot's own frame; the hits of both lasers are
+purple dots, faint rings every metre give the scale, the footprint is drawn as the robot model with
 a white line to its front, and the current stick input is a green arrow from the robot's
 centre (a short arc at the centre for rotation). Nothing of the scene beyond the laser hits
 is drawn: the participant has no global view.
@@ -22,7 +22,7 @@ RING_STEP_M = 1.0  # [m] between scale rings
 ARROW_LENGTH_M = 1.2  # [m] of the arrow at full deflection
 BACKGROUND = (18, 20, 24)
 RING = (60, 64, 72)
-LASER = (235, 40, 40)
+LASER = (190, 70, 235)  # purple: the object to inspect is the red thing
 ROBOT = (40, 90, 200)
 ARROW = (20, 190, 70)
 

@@ -2,7 +2,7 @@
 
 Who takes part, which control modes are compared and how their order is counterbalanced,
 the phases of a session in order, the secondary task, scoring, analysis, the participant's
-window, instructions and gamepad mapping, and the recordings' camera frames (thesis
+window, texts, gamepad mapping and keyboard keys, and the recordings' camera frames (thesis
 sections 7.5, 7.6.1.1-7.6.1.3; spec section 7). :mod:`.types` holds the dataclasses,
 :mod:`.parse` reads and validates the file; storage keeps a protocol's ``text`` and ``sha256``.
 """
@@ -15,10 +15,13 @@ from study.engine.protocol.types import (
     DEFAULT_AXES,
     DEFAULT_BUTTONS,
     DEFAULT_INVERT,
+    DEFAULT_KEYS,
     EXPERIENCE_INSTRUMENTS,
     GATES,
+    KEY_ACTIONS,
     METRICS,
     ON_FAIL,
+    PAD_CONTROLS,
     PHASE_KINDS,
     POSTHOC,
     PRACTICE_ORDERS,
@@ -51,10 +54,13 @@ __all__ = [
     "DEFAULT_AXES",
     "DEFAULT_BUTTONS",
     "DEFAULT_INVERT",
+    "DEFAULT_KEYS",
     "EXPERIENCE_INSTRUMENTS",
     "GATES",
+    "KEY_ACTIONS",
     "METRICS",
     "ON_FAIL",
+    "PAD_CONTROLS",
     "PHASE_KINDS",
     "POSTHOC",
     "PRACTICE_ORDERS",

@@ -7,10 +7,16 @@ Tables and fields (every one optional unless marked; unknown keys are refused):
 required, with its scenario; ``[phases.after_trial]`` instrument, weights);
 ``[secondary]`` p_correct, timeout_s, gap_s, near_miss_offsets, p_addition;
 ``[scoring]`` collision_penalty_s; ``[analysis]`` alpha, gate, posthoc, metrics,
-secondary_baseline_level; ``[ui]`` window, fullscreen, show_map, layout, ``[ui.instructions]``;
-``[input]`` deadzone, ``[input.axes]``, ``[input.buttons]``, invert; ``[recording]``
+secondary_baseline_level; ``[ui]`` window, fullscreen, show_map, layout, show_object,
+``[ui.instructions]`` (phase -> the "get ready" text), ``[ui.texts]`` (titles, time's up,
+practice feedback, pause: :data:`study.engine.texts.DEFAULT_TEXTS`); ``[input]`` deadzone,
+``[input.axes]``, ``[input.buttons]``, invert, ``[input.keys]`` (the keyboard's letters),
+``[input.names]`` (what the legends call the gamepad's controls); ``[recording]``
 camera_hz, camera_width, jpeg_quality.
-The shipped files in ``protocols/`` show every table.
+The participant's texts may hold placeholders (``{object}``, ``{attempt}``, ...; which ones
+each may use: :func:`study.engine.texts.allowed_placeholders`); ``{object}`` and
+``{laser_colour}`` are filled here, from the main scene. The shipped files in
+``protocols/`` show every table.
 """
 
 from __future__ import annotations
@@ -29,13 +35,13 @@ from sim.check import check_scene
 from sim.fields import FieldReader
 from sim.scenario import Scenario, load_scenario
 from study.engine.counterbalance import SCHEMES
+from study.engine.protocol.interface import input_settings, protocol_words, template, ui_settings
+from study.engine.protocol.readers import boolean as _boolean
+from study.engine.protocol.readers import raw as _raw
+from study.engine.protocol.readers import string_list as _string_list
+from study.engine.protocol.readers import text as _text
 from study.engine.protocol.types import (
     AFTER_TRIAL_INSTRUMENTS,
-    AXES,
-    BUTTONS,
-    DEFAULT_AXES,
-    DEFAULT_BUTTONS,
-    DEFAULT_INVERT,
     EXPERIENCE_INSTRUMENTS,
     GATES,
     METRICS,
@@ -46,14 +52,12 @@ from study.engine.protocol.types import (
     ROUTE_POINTS,
     TIMEOUTS,
     TLX_WEIGHTS,
-    UI_LAYOUTS,
     AfterTrial,
     AnalysisSettings,
     Baseline,
     Briefing,
     Debrief,
     ExperiencePhase,
-    InputSettings,
     MainTrials,
     Phase,
     Practice,
@@ -62,53 +66,8 @@ from study.engine.protocol.types import (
     Scoring,
     StudyInfo,
     Training,
-    UiSettings,
 )
 from tasks.secondary import SecondarySettings
-
-
-def _raw(r: FieldReader, key: str, default: Any = None) -> Any:
-    """The raw value of ``key`` (marked as known), ``default`` when absent, or "is required"."""
-    r.used.add(key)
-    if key in r.data:
-        return r.data[key]
-    if default is None:
-        raise r.fail(key, "is required")
-    return default
-
-
-def _boolean(r: FieldReader, key: str, default: bool) -> bool:
-    value = _raw(r, key, default)
-    if not isinstance(value, bool):
-        raise r.fail(key, f"must be true or false, got {value!r}")
-    return value
-
-
-def _text(r: FieldReader, key: str, default: str | None = None) -> str:
-    value = r.string(key, default)
-    if default is None and not value.strip():
-        raise r.fail(key, "must not be empty")
-    return value
-
-
-def _string_list(
-    r: FieldReader,
-    key: str,
-    default: list[str] | None,
-    *,
-    allowed: Collection[str] = (),
-    unique: bool = True,
-) -> tuple[str, ...]:
-    value = _raw(r, key, default)
-    if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
-        raise r.fail(key, f"must be a list of strings, got {value!r}")
-    for i, v in enumerate(value):
-        if allowed and v not in allowed:
-            raise r.fail(f"{key}[{i}]", f"must be one of {', '.join(allowed)}, got {v!r}")
-    duplicates = sorted({v for v in value if value.count(v) > 1})
-    if duplicates and unique:
-        raise r.fail(key, f"must not repeat names; {duplicates[0]!r} appears twice")
-    return tuple(value)
 
 
 class _Scenarios:
@@ -171,9 +130,12 @@ def _training(r: FieldReader, modes: tuple[str, ...], scenarios: _Scenarios) -> 
         secondary=secondary,
         direct_view=_boolean(r, "direct_view", True),
         modes=_string_list(r, "modes", list(modes), allowed=modes),
+        rehearsal_questions=r.integer("rehearsal_questions", 0, minimum=0),
     )
     if not phase.modes:
         raise r.fail("modes", "must name at least one of the protocol's modes")
+    if phase.rehearsal_questions and not secondary:
+        raise r.fail("rehearsal_questions", "needs secondary = true (they are its questions)")
     r.finish()
     return phase
 
@@ -259,7 +221,7 @@ def _phases(r: FieldReader, modes: tuple[str, ...], scenarios: _Scenarios) -> tu
             )
         last = rank
         if kind == "briefing":
-            phase: Phase = Briefing(text=_text(pr, "text"))
+            phase: Phase = Briefing(text=template(pr, "text", None, "text"))
             pr.finish()
         elif kind == "experience":
             phase = ExperiencePhase(
@@ -276,7 +238,7 @@ def _phases(r: FieldReader, modes: tuple[str, ...], scenarios: _Scenarios) -> tu
         elif kind == "main":
             phase = _main(pr, scenarios)
         else:
-            phase = Debrief(text=_text(pr, "text"))
+            phase = Debrief(text=template(pr, "text", None, "text"))
             pr.finish()
         phases.append(phase)
     if not any(isinstance(p, MainTrials) for p in phases):
@@ -336,58 +298,6 @@ def _analysis(r: FieldReader) -> AnalysisSettings:
         raise r.fail("metrics", f"must name at least one of {', '.join(METRICS)}")
     r.finish()
     return a
-
-
-def _ui(r: FieldReader) -> UiSettings:
-    window = r.vector("window", 2, [1280, 720], positive=True)
-    if not all(v == int(v) and v >= 320 for v in window):
-        raise r.fail("window", f"must be two whole numbers of pixels >= 320, got {list(window)}")
-    ir = r.sub("instructions")
-    texts = {}
-    for kind in PHASE_KINDS:
-        if kind in ir.data:
-            texts[kind] = _text(ir, kind)
-    ir.finish()
-    layout = r.string("layout", "map", allowed=UI_LAYOUTS)
-    show_map = _boolean(r, "show_map", layout == "map")
-    if layout == "laser" and show_map:
-        raise r.fail("show_map", 'must be false with layout = "laser" (that screen has no map)')
-    u = UiSettings(
-        window=(int(window[0]), int(window[1])),
-        fullscreen=_boolean(r, "fullscreen", False),
-        show_map=show_map,
-        instructions=texts,
-        layout=layout,
-    )
-    r.finish()
-    return u
-
-
-def _indices(
-    r: FieldReader, names: tuple[str, ...], defaults: Mapping[str, int]
-) -> Mapping[str, int]:
-    out = {name: r.integer(name, defaults[name], minimum=0) for name in names}
-    r.finish()
-    values = list(out.values())
-    duplicates = sorted({v for v in values if values.count(v) > 1})
-    if duplicates:
-        clash = [n for n, v in out.items() if v == duplicates[0]]
-        raise r.fail(clash[1], f"uses index {duplicates[0]} as {clash[0]!r} does")
-    return out
-
-
-def _input(r: FieldReader) -> InputSettings:
-    deadzone = r.number("deadzone", 0.1, non_negative=True)
-    if deadzone >= 1:
-        raise r.fail("deadzone", f"must lie in [0, 1), got {deadzone!r}")
-    s = InputSettings(
-        axes=_indices(r.sub("axes"), AXES, DEFAULT_AXES),
-        buttons=_indices(r.sub("buttons"), BUTTONS, DEFAULT_BUTTONS),
-        invert=_string_list(r, "invert", list(DEFAULT_INVERT), allowed=AXES),
-        deadzone=deadzone,
-    )
-    r.finish()
-    return s
 
 
 def _recording(r: FieldReader) -> RecordingSettings:
@@ -504,10 +414,12 @@ def parse_protocol(
     secondary = _secondary(r.sub("secondary"))
     scoring = _scoring(r.sub("scoring"))
     analysis = _analysis(r.sub("analysis"))
-    ui = _ui(r.sub("ui"))
-    inp = _input(r.sub("input"))
+    ui = ui_settings(r.sub("ui"))
+    inp = input_settings(r.sub("input"))
     recording = _recording(r.sub("recording"))
     r.finish()
+    main = next(p for p in phases if isinstance(p, MainTrials))
+    phases, ui = protocol_words(r, phases, ui, scenarios.cache[main.scenario])
     return Protocol(
         source=source,
         study=study,

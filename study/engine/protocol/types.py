@@ -10,6 +10,7 @@ from typing import Any, ClassVar
 
 from questionnaires import experience as experience_q
 from questionnaires import nasa_tlx
+from study.engine.texts import DEFAULT_TEXTS
 from tasks.secondary import SecondarySettings
 
 PHASE_KINDS: tuple[str, ...] = (
@@ -61,6 +62,49 @@ DEFAULT_BUTTONS: Mapping[str, int] = MappingProxyType({"yes": 0, "no": 1, "pause
 # Stick forward, stick left and right stick right read negative; robot x is forwards,
 # y to the left, yaw counter-clockwise: all three flip.
 DEFAULT_INVERT: tuple[str, ...] = ("vx", "vy", "yaw")
+# The keyboard's driving and answer keys ([input.keys]), letters only: the pages and forms
+# use Enter, Space, the arrows and the digits.
+KEY_ACTIONS: tuple[str, ...] = (
+    "forward",
+    "back",
+    "left",
+    "right",
+    "turn_left",
+    "turn_right",
+    "yes",
+    "no",
+    "pause",
+)
+DEFAULT_KEYS: Mapping[str, str] = MappingProxyType(
+    {
+        "forward": "W",
+        "back": "S",
+        "left": "A",
+        "right": "D",
+        "turn_left": "Q",
+        "turn_right": "E",
+        "yes": "Y",
+        "no": "N",
+        "pause": "P",
+    }
+)
+# What the on-screen legends call the gamepad's controls ([input.names]).
+PAD_CONTROLS: tuple[str, ...] = ("move", "turn", "yes", "no", "pause")
+# What is printed on an XInput pad (an F710 in X mode, an Xbox pad) at SDL2's indices: the
+# names the legends derive from the protocol's indices unless [input.names] gives them.
+XINPUT_BUTTON_NAMES: Mapping[int, str] = MappingProxyType(
+    {0: "A", 1: "B", 2: "X", 3: "Y", 4: "LB", 5: "RB", 6: "Back", 7: "Start", 8: "Guide"}
+)
+XINPUT_AXIS_NAMES: Mapping[int, str] = MappingProxyType(
+    {
+        0: "left stick",
+        1: "left stick",
+        2: "left trigger",
+        3: "right stick",
+        4: "right stick",
+        5: "right trigger",
+    }
+)
 
 
 # --------------------------------------------------------------------------- types
@@ -103,6 +147,7 @@ class Training:
     secondary: bool  # questions on entering the region
     direct_view: bool  # the scene may be viewed directly, not only via the interface
     modes: tuple[str, ...]  # in the order they are introduced
+    rehearsal_questions: int = 0  # questions at the start of each run, wherever the robot is
 
 
 @dataclass(frozen=True, slots=True)
@@ -189,6 +234,9 @@ class UiSettings:
     show_map: bool  # the complete map of the scene (thesis 7.6: yes; 7.5: no)
     instructions: Mapping[str, str]  # phase kind -> text shown before it
     layout: str = "map"  # UI_LAYOUTS
+    show_object: bool = False  # the inspection object marked on the map in its colour
+    # study.engine.texts.DEFAULT_TEXTS keys -> the protocol's text (titles, time's up, ...)
+    texts: Mapping[str, str] = field(default_factory=lambda: dict(DEFAULT_TEXTS))
 
 
 @dataclass(frozen=True, slots=True)
@@ -208,6 +256,29 @@ class InputSettings:
     buttons: Mapping[str, int]  # BUTTONS -> gamepad button index
     invert: tuple[str, ...]  # axes whose sign is flipped
     deadzone: float  # stick magnitude below which input is zero, [0, 1)
+    keys: Mapping[str, str] = field(default_factory=lambda: dict(DEFAULT_KEYS))  # KEY_ACTIONS
+    names: Mapping[str, str] = field(default_factory=dict)  # PAD_CONTROLS -> legend name
+
+    def pad_names(self) -> dict[str, str]:
+        """What the legends call each of :data:`PAD_CONTROLS`: ``names``, else derived from
+        the indices as an XInput pad prints them."""
+        out = {
+            "move": _stick_name(self.axes["vx"], self.axes["vy"]),
+            "turn": _stick_name(self.axes["yaw"]),
+            **{
+                b: XINPUT_BUTTON_NAMES.get(self.buttons[b], f"button {self.buttons[b]}")
+                for b in ("yes", "no", "pause")
+            },
+        }
+        out.update(self.names)
+        return out
+
+
+def _stick_name(*axes: int) -> str:
+    names = {XINPUT_AXIS_NAMES.get(a, "") for a in axes}
+    if len(names) == 1 and "" not in names:
+        return names.pop()
+    return "axes " + " and ".join(str(a) for a in axes) if len(axes) > 1 else f"axis {axes[0]}"
 
 
 @dataclass(frozen=True, slots=True)
