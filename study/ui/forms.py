@@ -1,30 +1,7 @@
 """Questionnaires on the participant's screen (issue 5, "Questionnaires on screen"; issue 19:
 quick to fill): where a participant is in a questionnaire page, without drawing
-(:class:`FormState`); :mod:`study.ui.form_view` draws it.
-
-Decisions where the spec is silent:
-
-- One page per instrument, one row per item; the selected row is framed. Up/down (arrow keys,
-  D-pad or left stick) select a row, left/right set its answer, a direction held down
-  repeats (:class:`study.ui.input.NavRepeat`); a mouse click on an answer sets it. A row
-  starts *unanswered* (no default that a participant could leave by accident).
-- A number item (age) is a typed entry: digits type the number (the first digit after
-  arriving at the row or stepping replaces what is there), Backspace deletes one, left/right
-  step it by one (from empty, right gives the minimum). A number outside the item's range is
-  shown with the allowed range and refused by "Done". Where the item may be declined,
-  "Prefer not to say" lies one step below the minimum (left from empty or from the minimum).
-- Choice and Likert items are rows of labelled options (handedness: Right, Left, Both
-  equally, Prefer not to say); left/right move between them, the first press selects the
-  first option of a choice and the middle of a Likert scale. Sliders (NASA-TLX, 0-100 in
-  steps of 5) start in the middle on the first press, each further press moves one step;
-  no number is shown on a slider (it could anchor the rating).
-- Nothing can be skipped: "Done" (the last row, or the button) finishes only once every
-  required item has an answer and no typed number is out of range; otherwise the selection
-  jumps to the first such row and a reminder is shown, which disappears as soon as nothing
-  is missing any more. Confirm on an item row moves to the next row. Items a questionnaire
-  marks ``optional`` may stay unanswered (stored as not answered).
-- The description of the selected item (NASA-TLX: the manual's scale definition) is shown
-  under the rows.
+(:class:`FormState`); :mod:`study.ui.form_view` draws it. How rows, typed numbers, choices,
+sliders and the reminder behave: docs/decisions.md, "study/ui/forms.py".
 """
 
 from __future__ import annotations
