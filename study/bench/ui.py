@@ -20,6 +20,7 @@ from __future__ import annotations
 import os
 import tempfile
 from pathlib import Path
+from typing import Any
 
 from sqlalchemy.orm import Session
 
@@ -33,7 +34,10 @@ def run(quick: bool = False) -> dict:
     """The ``ui`` figures (see the module docstring)."""
     os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
     os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
-    per_mode = {mode: _one_mode(mode, 8.0 if quick else 20.0) for mode in MODES}
+    from study.engine.protocol import load_protocol
+
+    protocol = load_protocol("pilot")
+    per_mode = {mode: _one_mode(protocol, mode, 8.0 if quick else 20.0) for mode in MODES}
     rows = per_mode.values()
     jitters = [r["tick_jitter_ms"] for r in rows if r["tick_jitter_ms"] is not None]
     return {
@@ -46,19 +50,18 @@ def run(quick: bool = False) -> dict:
     }
 
 
-def _one_mode(mode: str, seconds: float) -> dict:
-    """One headless training trial of ``seconds`` in ``mode``: its screen and camera rates,
-    tick jitter, frames drawn and simulated duration."""
+def _one_mode(protocol: Any, mode: str, seconds: float) -> dict:
+    """One headless training trial of ``seconds`` in ``mode`` with ``protocol``'s screen and
+    input settings: its screen and camera rates, tick jitter, frames drawn and simulated
+    duration."""
     import numpy as np
 
     from study.data.storage import Trial
-    from study.engine.protocol import load_protocol
     from study.participants.human import HumanParticipant
     from study.participants.scripted import ScriptedParticipant
     from study.ui.inject import EventDriver
     from study.ui.input import GamepadMapping
 
-    protocol = load_protocol("pilot")
     driver = EventDriver(
         ScriptedParticipant(np.random.default_rng(1)), GamepadMapping.from_settings(protocol.input)
     )

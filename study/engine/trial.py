@@ -83,7 +83,6 @@ class TrialSpec:
     secondary: SecondarySettings | None  # None: no questions
     baseline: bool = False  # the secondary task alone, without driving
     end_on_collision: bool = False
-    feedback: str = ""  # shown on the screen from the start
     camera_hz: float = 0.0  # [Hz] camera frames in the recording; 0: none
     camera_views: tuple[str, ...] = ("front",)  # recorded cameras: "front", "tail"
     recording: RecorderSettings = field(default_factory=RecorderSettings)  # rates, JPEG
@@ -276,7 +275,6 @@ class TrialLoop:
                 phase=spec.phase,
                 instruction=spec.instruction,
                 question=question,
-                feedback=spec.feedback,
                 paused=control.paused,
                 t=self.t,
             )
