@@ -133,8 +133,12 @@ DEVIATIONS: tuple[Deviation, ...] = (
         "Whenever the safety layer must slow the blended command and the user's own "
         "command, checked alike, gets further along the user's input, the contextual mode "
         "yields for that tick (beta = 0, the user's safe command), so that the assistance "
-        "never holds the robot back where the user's command would pass (not in the "
-        "thesis; the safety layer itself is Sec. 7.6.1.2, footnote 31).",
+        "never holds the robot back where the user's command would pass. Where the safety "
+        "layer would slow the user's command too, the command yielded to is the reactive "
+        "mode's dynamic-window twist nearest it (Eq. 3.8) when that gets further, so a "
+        "robot a wrong recognition has pushed off a doorway's axis slides back instead of "
+        "standing with the stick held (not in the thesis; the safety layer itself is "
+        "Sec. 7.6.1.2, footnote 31).",
     ),
     Deviation(
         "Contextual mode: tracking",

@@ -22,6 +22,7 @@ import numpy as np
 from scipy.special import ndtr
 
 from autonomy.arbitration import blend
+from autonomy.dwa import DWASettings, dwa
 from autonomy.features import encode, task_features
 from autonomy.local_gmr import EM_MAX_ITER, EM_TOL, LocalGMR
 from autonomy.model import DEFAULT_MODEL, ContextualModel, load_model
@@ -55,8 +56,18 @@ class ContextualSettings:
     # freer: the user's safe command gets further along the user's translational input
     # than the safe blend; False: its safety scale is larger (the rule before issue 19)
     yield_by_progress: bool = True
+    # where the safety layer would slow the user's command, the command yielded to is the
+    # dynamic window's admissible twist nearest it (the reactive mode's obstacle avoidance,
+    # Eq. 3.8) if that gets further; False: always the user's command, scaled
+    yield_planner: bool = True
+    planner: DWASettings = field(default_factory=DWASettings)
 
     def __post_init__(self) -> None:
+        if not isinstance(self.yield_planner, bool):
+            raise ValueError(
+                "contextual_task setting yield_planner: must be true or false, got "
+                f"{self.yield_planner!r}"
+            )
         ybs = self.yield_below_scale
         if not (isinstance(ybs, int | float) and 0.0 <= ybs <= 1.0):
             raise ValueError(
@@ -439,17 +450,25 @@ class ContextualTaskMode:
         )
 
     def _safe(
-        self, v: np.ndarray, u: np.ndarray, beta: float, points: np.ndarray
+        self, v: np.ndarray, u: np.ndarray, beta: float, points: np.ndarray, velocity: np.ndarray
     ) -> tuple[np.ndarray, float]:
         """The safety layer on the blended command ``v`` (3,); the mode yields (``v`` the
         user's safe command, ``beta`` 0) when ``v`` is scaled below ``yield_below_scale``
-        and the user's own command ``u`` (3,) is freer. ``points`` (m, 2) [m]."""
+        and the user's own command ``u`` (3,) is freer. With ``yield_planner`` the user's
+        safe command is, where the safety layer would slow ``u``, the dynamic window's
+        admissible twist nearest ``u`` (Eq. 3.8; the window centred on ``velocity`` (3,))
+        when that gets further along ``u``.
+        ``points`` (m, 2) [m]."""
         s, robot = self.settings, self.robot_
         v, scale = safe_command(v, points, robot, horizon_s=s.safety_horizon_s)
-        if beta > 0.0 and scale < s.yield_below_scale:
+        if scale < s.yield_below_scale and (beta > 0.0 or s.yield_planner):
             # an assistance the safety layer must slow may not hold the robot back where
             # the user's own command, checked alike, gets further (docs/decisions.md)
             v_user, scale_user = safe_command(u, points, robot, horizon_s=s.safety_horizon_s)
+            if s.yield_planner and scale_user < 1.0:
+                planned = dwa(u, points, velocity, robot, settings=s.planner).v
+                if _progress(planned, u) > _progress(v_user, u):
+                    v_user = planned
             if s.yield_by_progress:
                 freer = _progress(v_user, u) > _progress(v, u)
             else:
@@ -508,7 +527,7 @@ class ContextualTaskMode:
         # 6. blend (3.2) and the safety layer
         v = blend(u, g, beta)  # Eq. (3.2)
         t_track = time.perf_counter()
-        v, beta = self._safe(v, u, beta, points)
+        v, beta = self._safe(v, u, beta, points, obs.velocity)
         end = time.perf_counter()
         best = mean.max(axis=1)
         scores = {str(components[int(k)].id): float(best[n]) for n, k in enumerate(chosen)}

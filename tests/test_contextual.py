@@ -19,6 +19,7 @@ from autonomy.contextual import (
     build_runtime,
     rollout,
 )
+from autonomy.dwa import dwa
 from autonomy.gmr import gmr
 from autonomy.local_gmr import LocalGMR, local_gmm
 from autonomy.modes import settings_from
@@ -256,10 +257,10 @@ def test_a_slowed_assistance_gives_way_to_a_user_who_gets_further():
     )
     for m in (new, old):
         m.reset(ROBOT)
-    v, beta = new._safe(blend, u, 0.6, points)
+    v, beta = new._safe(blend, u, 0.6, points, np.zeros(3))
     assert beta == 0.0
     np.testing.assert_array_equal(v, u)
-    v_old, beta_old = old._safe(blend, u, 0.6, points)
+    v_old, beta_old = old._safe(blend, u, 0.6, points, np.zeros(3))
     assert beta_old == 0.6
     np.testing.assert_array_equal(v_old, safe_command(blend, points, ROBOT)[0])
 
@@ -270,12 +271,16 @@ def test_a_slowed_assistance_gives_way_to_a_user_who_gets_further():
     u=st.tuples(st.floats(-1, 1), st.floats(-1, 1), st.floats(-1.2, 1.2)),
     g=st.tuples(st.floats(-1, 1), st.floats(-1, 1), st.floats(-1.2, 1.2)),
     beta=st.floats(0.0, 1.0),
+    velocity=st.tuples(st.floats(-0.5, 0.5), st.floats(-0.5, 0.5), st.floats(-1, 1)),
 )
-def test_where_the_safety_layer_slows_the_assistance_the_user_gets_as_far(scene, u, g, beta):
-    """Any scene, input and assistance: the command is the safe blend, or the user's safe
-    command with beta 0; where the safety layer slows the blend, the robot gets at least
-    as far along the user's input as the user's own command would."""
-    u, g = np.array(u), np.array(g)
+def test_where_the_safety_layer_slows_the_assistance_the_user_gets_as_far(
+    scene, u, g, beta, velocity
+):
+    """Any scene, input, assistance and velocity: the command is the safe blend, or with
+    beta 0 the user's safe command or the dynamic window's twist nearest it; where the
+    safety layer slows the blend, the robot gets at least as far along the user's input
+    as the user's own command would, and the command keeps the protective field."""
+    u, g, velocity = np.array(u), np.array(g), np.array(velocity)
     if math.hypot(u[0], u[1]) < 0.05:
         return  # the mode does not assist
     rng = np.random.default_rng(scene)
@@ -284,16 +289,35 @@ def test_where_the_safety_layer_slows_the_assistance_the_user_gets_as_far(scene,
     m = ContextualTaskMode(ContextualSettings(model_path=""))
     m.reset(ROBOT)
     blend = (1 - beta) * u + beta * g
-    v, out_beta = m._safe(blend, u, beta, points)
+    v, out_beta = m._safe(blend, u, beta, points, velocity)
     safe_blend, scale = safe_command(blend, points, ROBOT)
-    safe_user = safe_command(u, points, ROBOT)[0]
-    if out_beta == beta:
-        np.testing.assert_array_equal(v, safe_blend)
-    else:
+    safe_user, user_scale = safe_command(u, points, ROBOT)
+    planned = dwa(u, points, velocity, ROBOT, settings=m.settings.planner).v
+    yielded = out_beta != beta or not np.array_equal(v, safe_blend)
+    if yielded:
         assert out_beta == 0.0
-        np.testing.assert_array_equal(v, safe_user)
-    if beta > 0 and scale < 1.0:
+        assert np.array_equal(v, safe_user) or (user_scale < 1 and np.array_equal(v, planned))
+        if not np.array_equal(v, safe_user):  # the twist keeps the protective field
+            assert safe_command(v, points, ROBOT)[1] == 1.0
+    if scale < 1.0:
         assert _along(v, u) >= _along(safe_user, u) - 1e-12
+
+
+def test_a_user_the_safety_layer_stops_off_axis_slides_through():
+    """Issue 19: 8 cm off a 0.75 m doorway's axis and 5 cm before it, the straight
+    command and any blend are stopped by the protective field; the mode yields to the
+    dynamic window's twist nearest the user's, which makes progress and slides towards
+    the centre (before, the robot stood there with the stick held)."""
+    points = _doorway_frame(0.05) + np.array([0.0, -0.08])  # the doorway's centre at -8 cm
+    u, blend = np.array([0.4, 0.0, 0.0]), np.array([0.4, 0.05, 0.1])
+    assert safe_command(u, points, ROBOT)[1] == 0.0
+    m = ContextualTaskMode(ContextualSettings(model_path=""))
+    m.reset(ROBOT)
+    v, beta = m._safe(blend, u, 0.8, points, np.zeros(3))
+    assert beta == 0.0 and v[0] > 0.05 and v[1] < 0.0
+    old = ContextualTaskMode(ContextualSettings(model_path="", yield_planner=False))
+    old.reset(ROBOT)
+    np.testing.assert_array_equal(old._safe(blend, u, 0.8, points, np.zeros(3))[0], 0.0)
 
 
 def test_settings_are_validated():

@@ -38,7 +38,7 @@ from sim.types import SemanticComponent
 TOL = 1e-12
 # the reference keeps the yield rule before issue 19 (below half the safety scale, the
 # scales compared); the mode's settings select it, as the golden rows pin old DWA scoring
-OLD_YIELD = {"yield_below_scale": 0.5, "yield_by_progress": False}
+OLD_YIELD = {"yield_below_scale": 0.5, "yield_by_progress": False, "yield_planner": False}
 
 # --------------------------------------------------------------------------- reference
 

@@ -14,9 +14,9 @@ A lane is driven when a straight, centred pass can keep the robot's protective m
 leaves room to stop beyond it (the braking distance from full speed); a passage without
 such a lane is named by :func:`test_every_passage_has_a_straight_lane`. The default run
 drives the practice course (the practice doorway of issue 19); the other scenes are
-``slow``. Known failures of the contextual mode, where a confident recognition of another
-task steers the robot off the axis before the yield and safety rules come in, are marked
-``xfail`` (``CONTEXTUAL_OFF_AXIS``).
+``slow``. Where a confident recognition of another task has turned the contextual mode's
+robot off the axis into the protective field, its yield to the dynamic window's twist
+nearest the user's slides it back (before, five lanes of cluttered_room stopped there).
 """
 
 from __future__ import annotations
@@ -45,19 +45,6 @@ NO_STRAIGHT_LANE = {
     # a diagonal gap facing wall_x4_middle: from the west the lane ends 0.125 m before the
     # wall (no room to stop), from the east the approach runs through it
     ("cluttered_room", "gap_2"),
-}
-# Lanes where the contextual mode, recognising another task with beta near 1 in the first
-# second (docking under the table beside gap_1, bypassing cabinet_r4, bin_r4 before
-# doorway_1, shelf_b2_north before gap_5), turns and shifts the robot 7-15 cm off the axis;
-# there the protective field stops both the straight command and the blend, and only a
-# driver who steers gets on. The thesis's recognition and blending (Eqs. 3.2, 5.10), not
-# the yield and safety rules; measured over seeds, some pass (issue 19's report).
-CONTEXTUAL_OFF_AXIS = {  # (scene, passage, side, speed)
-    ("cluttered_room", "gap_1", 1.0, 0.4),
-    ("cluttered_room", "gap_1", 1.0, 1.0),
-    ("cluttered_room", "gap_1", -1.0, 0.4),
-    ("cluttered_room", "doorway_1", 1.0, 0.4),
-    ("cluttered_room", "gap_5", -1.0, 0.4),
 }
 
 
@@ -89,9 +76,6 @@ def _passage_ids(name: str) -> list[str]:
     return [c.id for c in _components(name)[1] if c.kind in ("doorway", "gap")]
 
 
-_OFF_AXIS = "contextual mode: a confident other task turns the robot off the axis first"
-
-
 def _cases() -> list:
     out = []
     for name in available_scenarios():
@@ -101,10 +85,6 @@ def _cases() -> list:
                 for mode in MODES:
                     for speed in SPEEDS:
                         marks = slow
-                        if mode == "contextual_task" and (name, passage, side, speed) in (
-                            CONTEXTUAL_OFF_AXIS
-                        ):
-                            marks += (pytest.mark.xfail(reason=_OFF_AXIS, strict=False),)
                         case = (name, passage, side, mode, speed)
                         key = f"{name}-{passage}-{'+' if side > 0 else '-'}-{mode}-{speed:g}"
                         out.append(pytest.param(*case, id=key, marks=marks))
