@@ -190,6 +190,36 @@ def test_answers_take_time_and_are_slower_while_driving(seed):
     assert times[True] > times[False]
 
 
+def test_a_trial_does_not_depend_on_how_many_draws_earlier_trials_took(seed):
+    """Each trial has its own random stream (phase, position, attempt): a person who drew
+    much more in an earlier trial answers the same main trial's question at the same
+    moment (before, one stream ran through the session, and a change to one mode's
+    training trial moved the manual main trial after it)."""
+    scenario = load_scenario("practice_course")
+    pairs = [(a, b) for a in TLX_ORDER for b in TLX_ORDER if a < b]
+    times = []
+    with World(scenario, seed=0) as world:
+        for earlier in (1, 40):
+            person = SyntheticParticipant(_params(seed), np.random.default_rng(seed))
+            person.begin_trial(TrialInfo("training", scenario, ("dock",), False, True, 60.0))
+            for _ in range(earlier):
+                person.choose(pairs)  # the earlier trial's draws
+            person.begin_trial(
+                TrialInfo("main", scenario, ("dock",), False, True, 60.0, drive=False, ordinal=1)
+            )
+            obs = world.reset(seed=0)
+            screen = ScreenState(phase="main", question="12 + 30 = 42 ?")
+            t = 0.0
+            while True:
+                t += 0.05
+                inp = person.act(replace(obs, t=t), replace(screen, t=t))
+                if inp.answer is not None:
+                    break
+                assert t < 30
+            times.append((round(t / 0.05), inp.answer))
+    assert times[0] == times[1]
+
+
 # ---------------------------------------------------------------- driving
 
 

@@ -293,6 +293,11 @@ class ScriptedParticipant(ParticipantBase):
             )
         return best[1], best[2]
 
+    def reseed(self, rng: np.random.Generator) -> None:
+        """Draw from ``rng`` from now on (a synthetic participant gives each trial its own
+        stream)."""
+        self._rng = rng
+
     def begin_trial(self, info: TrialInfo) -> None:
         """Plan the trial's route (and inspection) on the scene's occupancy grid."""
         self._legs, self._leg, self._progress, self._stuck = [], 0, 0, 0

@@ -53,6 +53,19 @@ DT = 0.05  # [s] the control tick the stick model assumes
 # ---------------------------------------------------------------------- the participant
 
 
+_PHASES = ("training", "practice", "baseline", "main")
+
+
+def trial_stream(root: int, info: TrialInfo) -> np.random.Generator:
+    """A trial's own random stream, from the participant's ``root`` seed and the trial's
+    identity (phase, position in it, attempt): what a person does in one trial does not
+    depend on how many draws earlier trials took (so a change to one mode's trials leaves
+    the others' as they were)."""
+    phase = _PHASES.index(info.phase) if info.phase in _PHASES else len(_PHASES)
+    attempt = info.attempt_of[0] if info.attempt_of else 1
+    return np.random.default_rng([root, phase, info.ordinal, attempt])
+
+
 def _segments_cross(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> bool:
     """Whether the polyline ``p`` (k, 2) crosses the segment ``a``-``b``."""
     if len(p) < 2:
@@ -118,6 +131,7 @@ class SyntheticParticipant(ParticipantBase):
                 orbit_speed=min(params.preferred_speed, 0.3),
             ),
         )
+        self._trial_seed = int(rng.integers(2**62))  # root of every trial's own stream
         self._guard = replace(
             SkillSettings(),
             guard_margin=0.05 * params.caution,
@@ -210,6 +224,8 @@ class SyntheticParticipant(ParticipantBase):
         self._info = info
         self._outcome = None
         self._reset_trial_state()
+        self._rng = trial_stream(self._trial_seed, info)
+        self._driver.reseed(np.random.default_rng(int(self._rng.integers(2**62))))
         self._stick.reset(np.random.default_rng(int(self._rng.integers(2**62))))
         self._driver.begin_trial(info)
         self._passages = []
