@@ -6,17 +6,11 @@ from pathlib import Path
 
 import click
 
-from study.cli import flag_errors
+from study.cli import db_option, flag_errors
 
 
 @click.command("export")
-@click.option(
-    "--db",
-    "path",
-    required=True,
-    type=click.Path(dir_okay=False, path_type=Path),
-    help="Study database (SQLite file).",
-)
+@db_option("Study database: a SQLite file or a SQLAlchemy URL (opened read-only).", name="path")
 @click.option(
     "--out",
     required=True,

@@ -8,14 +8,11 @@ from pathlib import Path
 
 import click
 
+from study.cli import db_option
+
 
 @click.command()
-@click.option(
-    "--db",
-    required=True,
-    type=click.Path(path_type=Path),
-    help="The study database (SQLite file).",
-)
+@db_option("The study database: a SQLite file or a SQLAlchemy URL (opened read-only).")
 @click.option("--participant", required=True, help="Participant code, e.g. P01.")
 @click.option(
     "--trial",
