@@ -255,3 +255,121 @@ def test_a_study_in_use_is_read_through_its_wal(study_db):
         reader.dispose()
     finally:
         writer.dispose()
+
+
+# ---------------------------------------------------------------- names that cannot become paths
+
+BAD_NAMES = ["../../escaped", "/tmp/abs_escaped", "a/b", "..", ".", "", "back\\slash", "nul\x00"]
+
+
+@pytest.mark.parametrize("name", BAD_NAMES)
+def test_a_bad_scenario_name_cannot_make_the_map_leave_out(tmp_path, name):
+    import dataclasses
+
+    from sim.scenario import load_scenario
+    from study.jobs.scenes import write_map
+
+    scenario = dataclasses.replace(load_scenario("practice_course"), name=name)
+    out = tmp_path / "a" / "b" / "out"
+    with pytest.raises(ValueError, match="field 'name'"):
+        write_map(scenario, out)
+    assert [p for p in tmp_path.rglob("*") if p.is_file()] == []
+    assert not Path("/tmp/abs_escaped.pgm").exists()
+
+
+def test_a_symbolic_link_in_out_is_not_followed_outside(tmp_path):
+    from sim.scenario import load_scenario
+    from study.jobs.scenes import write_map
+
+    victim = tmp_path / "victim.txt"
+    victim.write_text("unrelated\n", encoding="utf-8")
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "practice_course.png").symlink_to(victim)
+    with pytest.raises(ValueError, match="leads outside"):
+        write_map(load_scenario("practice_course"), out)
+    assert victim.read_text(encoding="utf-8") == "unrelated\n"
+    assert sorted(p.name for p in out.iterdir()) == ["practice_course.png"]
+
+
+def test_asa_scenario_map_with_an_escaping_name_is_one_line(tmp_path, capsys):
+    from sim.scenario import SCENARIO_DIR
+
+    text = (SCENARIO_DIR / "practice_course.toml").read_text(encoding="utf-8")
+    text = text.replace('name = "practice_course"', 'name = "../../escaped"', 1)
+    source = tmp_path / "s" / "evil.toml"
+    source.parent.mkdir()
+    source.write_text(text, encoding="utf-8")
+    victim = tmp_path / "escaped.pgm"
+    victim.write_text("unrelated\n", encoding="utf-8")
+    out = tmp_path / "s" / "x" / "out"
+    one_line_error(*asa(capsys, "scenario", "map", str(source), "--out", str(out))[::2])
+    assert victim.read_text(encoding="utf-8") == "unrelated\n"
+    assert sorted(p.name for p in tmp_path.rglob("*") if p.is_file()) == [
+        "escaped.pgm",
+        "evil.toml",
+    ]
+
+
+def test_a_session_never_saves_a_map_outside_its_maps_folder(tmp_path):
+    from sim.scenario import SCENARIO_DIR
+    from study.engine.runner import Scenes
+
+    text = (SCENARIO_DIR / "practice_course.toml").read_text(encoding="utf-8")
+    source = tmp_path / "evil.toml"
+    source.write_text(text.replace('"practice_course"', '"../escaped"', 1), encoding="utf-8")
+    victim = tmp_path / "escaped.yaml"
+    victim.write_text("unrelated\n", encoding="utf-8")
+    scenes = Scenes(tmp_path / "rec" / "maps")
+    try:
+        with pytest.raises(ValueError):
+            scenes.get(str(source))
+    finally:
+        scenes.close()
+    assert victim.read_text(encoding="utf-8") == "unrelated\n"
+    assert not (tmp_path / "escaped.pgm").exists()
+
+
+def test_save_ros_map_refuses_a_stem_with_a_folder(tmp_path):
+    from sim.map_files import save_ros_map
+    from sim.occupancy import build_grid
+    from sim.scenario import load_scenario
+
+    grid = build_grid(load_scenario("practice_course"), resolution=0.2)
+    with pytest.raises(ValueError, match="plain file name"):
+        save_ros_map(grid, tmp_path / "maps", "../up")
+    assert not (tmp_path / "up.pgm").exists()
+
+
+# ---------------------------------------------------------------- no overwrites without --force
+
+
+def test_export_does_not_overwrite_without_force(study_db, tmp_path, capsys):
+    out = tmp_path / "csv"
+    out.mkdir()
+    (out / "notes.txt").write_text("mine\n", encoding="utf-8")
+    code, _, err = asa(capsys, "export", "--db", str(study_db), "--out", str(out))
+    assert code == 0, err  # other files in the folder are no obstacle
+    before = {p.name: fingerprint(p) for p in out.iterdir()}
+    line = one_line_error(*asa(capsys, "export", "--db", str(study_db), "--out", str(out))[::2])
+    assert "--out" in line and ".csv" in line and "--force" in line
+    assert {p.name: fingerprint(p) for p in out.iterdir()} == before
+    code, out_text, err = asa(capsys, "export", "--db", str(study_db), "--out", str(out), "--force")
+    assert code == 0 and "trial.csv" in out_text, err
+    assert (out / "notes.txt").read_text(encoding="utf-8") == "mine\n"
+
+
+def test_train_does_not_overwrite_a_model_without_force(tmp_path, capsys):
+    model = tmp_path / "model.npz"
+    model.write_bytes(b"an earlier model")
+    line = one_line_error(
+        *asa(capsys, "train", "--demonstrations", str(tmp_path / "d"), "--out", str(model))[::2]
+    )
+    assert str(model) in line and "--force" in line
+    assert model.read_bytes() == b"an earlier model"
+    # with --force the model is no obstacle: the missing demonstrations are the error now
+    line = one_line_error(
+        *asa(capsys, "train", "--demonstrations", str(tmp_path / "d"), "--out", str(model),
+             "--force")[::2]
+    )  # fmt: skip
+    assert "exists already" not in line and str(tmp_path / "d") in line

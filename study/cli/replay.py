@@ -4,8 +4,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import click
 
 from study.cli import db_option
@@ -28,7 +26,7 @@ from study.cli import db_option
     help="Print what the recording holds (entities, rows, time range, camera frames) "
     "instead of opening the viewer.",
 )
-def replay(db: Path, participant: str, trial: int, print_only: bool) -> None:
+def replay(db: str, participant: str, trial: int, print_only: bool) -> None:
     """Open the rerun viewer on one trial's recording (rerun's analytics switched off).
 
     Example: asa replay --db study.db --participant P01 --trial 7 --print

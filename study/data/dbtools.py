@@ -356,18 +356,29 @@ def _cell(value: Any, is_json: bool) -> str:
     return str(value)
 
 
-def export(db: str | Path, out: str | Path) -> dict[str, int]:
-    """Write one CSV per table of the study database into folder ``out``.
+def export(db: str | Path, out: str | Path, *, force: bool = False) -> dict[str, int]:
+    """Write one CSV per table of the study database into folder ``out`` (the database is
+    opened read-only).
 
     Returns
     -------
     dict
         Table name -> rows written.
+
+    Raises
+    ------
+    ValueError
+        ``out`` is a file, or a CSV file of the export exists already and ``force`` is
+        false (naming it; nothing is written); see :func:`open_database` for the database.
     """
-    engine = open_database(db, create=False)
+    from study.data.paths import refuse_existing
+
     folder = Path(out)
     if folder.exists() and not folder.is_dir():
         raise ValueError(f"out: {out} must be a folder, and this is a file")
+    targets = [folder / f"{table.name}.csv" for table in Base.metadata.sorted_tables]
+    refuse_existing(targets, force=force)
+    engine = open_database(db, create=False)
     folder.mkdir(parents=True, exist_ok=True)
     written: dict[str, int] = {}
     try:

@@ -24,6 +24,7 @@ from sim.occupancy import build_grid
 from sim.scenario import load_scenario
 from sim.semantics import derive_components
 from sim.world import World
+from study.data.paths import file_in
 from study.data.recording import RecorderSettings
 from study.data.storage import (
     TRIAL_FINISHED,
@@ -97,8 +98,11 @@ class Scenes:
             scenario = load_scenario(source)
             components = derive_components(scenario)
             grid = build_grid(scenario)
-            if self.maps is not None and not (self.maps / f"{scenario.name}.yaml").exists():
-                self._save_map(grid, scenario.name)
+            if self.maps is not None:
+                what = f"{scenario.source}: field 'name'"
+                if not file_in(self.maps, scenario.name, ".yaml", what=what).exists():
+                    file_in(self.maps, scenario.name, ".pgm", what=what)
+                    self._save_map(grid, scenario.name)
             self._scenes[source] = Scene(
                 name=scenario.name,
                 scenario=scenario,
