@@ -23,6 +23,7 @@ from study.data.storage import (
     SCHEMA_VERSION,
     Meta,
     Study,
+    Trial,
     database_file,
     database_url,
     open_database,
@@ -373,3 +374,66 @@ def test_train_does_not_overwrite_a_model_without_force(tmp_path, capsys):
              "--force")[::2]
     )  # fmt: skip
     assert "exists already" not in line and str(tmp_path / "d") in line
+
+
+# ---------------------------------------------------------------- recordings named by study
+
+TWO_TRIALS = """
+[study]
+name = "shared-recordings"
+participants = 1
+seed = 3
+
+[modes]
+names = ["manual", "reactive_bn"]
+counterbalancing = "full_permutation"
+
+[[phases]]
+kind = "main"
+scenario = "practice_course"
+route = ["A", "B"]
+inspection = false
+secondary = false
+timeout_s = 2.0
+"""
+
+
+def test_two_studies_share_a_recordings_folder_without_replacing_files(tmp_path, seed, capsys):
+    from study.data.dbtools import check, find_recording, remove_recordings_of
+    from study.jobs.synth import run_synthetic_study
+
+    protocol = tmp_path / "p.toml"
+    protocol.write_text(TWO_TRIALS, encoding="utf-8")
+    rec = tmp_path / "rec"
+    files: dict[str, dict[str, str]] = {}
+    for name, study_seed in (("a", seed % 1000), ("b", seed % 1000 + 1)):
+        run_synthetic_study(protocol, tmp_path / f"{name}.db", participants=1, seed=study_seed,
+                            recordings=rec)  # fmt: skip
+        files[name] = {p.name: fingerprint(p)[0] for p in (rec / "P01").iterdir()}
+    a_files = files["a"]
+    assert len(a_files) == 2 and len(files["b"]) == 4  # b added its own two
+    assert {p.name: fingerprint(p)[0] for p in (rec / "P01").iterdir() if p.name in a_files} == (
+        a_files
+    )
+    prefixes = {name.split("_")[0] for name in files["b"]}
+    assert len(prefixes) == 2 and all(len(p) == 8 for p in prefixes)
+    for name in "ab":
+        report = check(tmp_path / f"{name}.db", verify_recordings=False)
+        assert report.clean, report.text()
+        db = str(tmp_path / f"{name}.db")
+        engine = open_database(db, create=False)
+        with Session(engine) as s:
+            trial_ids = list(s.scalars(select(Trial.id)))
+        engine.dispose()
+        for tid in trial_ids:
+            assert find_recording(db, "P01", tid).is_file()
+        code, out, err = asa(
+            capsys, "replay", "--db", db, "--participant", "P01", "--trial", str(trial_ids[0]),
+            "--print",
+        )  # fmt: skip
+        assert code == 0 and "recording" in out, err
+    # throwing a study's recordings away (a synthetic participant run again) spares the other's
+    removed = remove_recordings_of(tmp_path / "b.db")
+    assert len(removed) == 2
+    assert {p.name for p in (rec / "P01").iterdir()} == set(a_files)
+    assert check(tmp_path / "a.db", verify_recordings=False).clean

@@ -13,6 +13,7 @@ columns in the table's order, JSON columns as JSON text, times in ISO 8601, NULL
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import datetime as dt
 import json
@@ -337,6 +338,35 @@ def find_recording(db: str | Path, participant: str, trial: int) -> Path:
             f"{participant} is missing ({path})"
         )
     return path
+
+
+def remove_recordings_of(db: str | Path) -> list[Path]:
+    """Delete the recording files the SQLite database ``db`` refers to, and their
+    participant folders when that leaves them empty; returns the files deleted.
+
+    For a scratch database about to be thrown away (a synthetic participant run again
+    after a crash): only its own files go, never the rest of a shared recordings folder.
+    A missing or unreadable database deletes nothing.
+    """
+    try:
+        engine = open_database(db, create=False)
+    except (ValueError, FileNotFoundError):
+        return []
+    try:
+        with Session(engine) as s:
+            stored = [p for p in s.scalars(select(Trial.recording_path)) if p]
+    finally:
+        engine.dispose()
+    folder = database_file(db).parent
+    removed = []
+    for rel in stored:
+        path = Path(rel) if Path(rel).is_absolute() else folder / rel
+        if path.is_file():
+            path.unlink()
+            removed.append(path)
+            with contextlib.suppress(OSError):
+                path.parent.rmdir()  # only when empty
+    return removed
 
 
 # ------------------------------------------------------------------------- export

@@ -25,13 +25,14 @@ from sim.scenario import load_scenario
 from sim.semantics import derive_components
 from sim.world import World
 from study.data.paths import file_in
-from study.data.recording import RecorderSettings
+from study.data.recording import RecorderSettings, study_tag
 from study.data.storage import (
     TRIAL_FINISHED,
     Event,
     Participant,
     Response,
     SessionRow,
+    Study,
     Trial,
     database_file,
     utc_now,
@@ -127,6 +128,14 @@ class Scenes:
         self._scenes.clear()
 
 
+def _study_tag(engine: Engine, study_id: int) -> str:
+    """The study's identity in recording file names (:func:`study_tag`), from its row."""
+    with Session(engine) as s:
+        study = s.get(Study, study_id)
+        assert study is not None  # the participant row refers to it
+        return study_tag(study.protocol_sha256, study.seed, study.created_at, study.id)
+
+
 class SessionRunner:
     """The phases of one session, in the protocol's order (:func:`run_session`)."""
 
@@ -169,6 +178,7 @@ class SessionRunner:
             recordings if recordings is not None else self.folder / f"{db_path.stem}_recordings"
         )
         self.scenes = Scenes(self.recordings / "maps")
+        self.study_tag = _study_tag(engine, person.study_id)
         self.trials: list[TrialSummary] = []
 
     # -------------------------------------------------------------- database helpers
@@ -243,7 +253,9 @@ class SessionRunner:
             mode=mode,
             trial_values=values,
             recording_dir=self.folder,
-            recording_rel=lambda tid: recording_relpath(self.folder, self.recordings, code, values),
+            recording_rel=lambda tid: recording_relpath(
+                self.folder, self.recordings, code, values, self.study_tag
+            ),
             session_id=self.session_id,
             clock=self.clock,
             control=self.control,
