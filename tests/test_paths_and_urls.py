@@ -437,3 +437,86 @@ def test_two_studies_share_a_recordings_folder_without_replacing_files(tmp_path,
     assert len(removed) == 2
     assert {p.name for p in (rec / "P01").iterdir()} == set(a_files)
     assert check(tmp_path / "a.db", verify_recordings=False).clean
+
+
+# ---------------------------------------------------------------- the replay viewer
+
+
+def _fake_viewer(folder: Path, body: str) -> tuple[Path, Path]:
+    """An executable standing in for rerun: writes its arguments to a file, then ``body``."""
+    args = folder / "args.txt"
+    exe = folder / "fake_rerun"
+    exe.write_text(f'#!/bin/sh\necho "$@" > {args}\n{body}\n', encoding="utf-8")
+    exe.chmod(0o755)
+    return exe, args
+
+
+def test_the_viewer_is_bound_to_localhost(monkeypatch):
+    from study.data import rrd
+
+    monkeypatch.setattr(rrd, "rerun_executable", lambda: "rerun")
+    command = rrd.viewer_command("x.rrd")
+    assert command[command.index("--bind") + 1] == "127.0.0.1"
+    assert (
+        "0.0.0.0" not in command and "--serve-web" not in command and "--web-viewer" not in command
+    )
+
+
+def test_a_viewer_that_dies_is_one_line_and_exit_2(tmp_path, monkeypatch):
+    from study.data import rrd
+
+    exe, args = _fake_viewer(
+        tmp_path, 'echo "Error: Failed to open connection to X server" >&2\nexit 1'
+    )
+    monkeypatch.setattr(rrd, "rerun_executable", lambda: str(exe))
+    monkeypatch.setenv("DISPLAY", ":97")
+    with pytest.raises(ValueError, match="did not start .*X server"):
+        rrd.open_viewer(tmp_path / "t.rrd", grace_s=10.0)
+    assert "--bind 127.0.0.1" in args.read_text(encoding="utf-8")
+
+
+def test_a_viewer_that_runs_is_reported_open(tmp_path, monkeypatch):
+    from study.data import rrd
+
+    exe, args = _fake_viewer(tmp_path, "exec sleep 30")
+    monkeypatch.setattr(rrd, "rerun_executable", lambda: str(exe))
+    monkeypatch.setenv("DISPLAY", ":97")
+    process = rrd.open_viewer(tmp_path / "t.rrd", grace_s=0.5)
+    try:
+        assert process.returncode is None
+    finally:
+        process.kill()
+        process.wait()
+
+
+def test_asa_replay_without_a_display_is_one_line(tmp_path, monkeypatch, capsys, seed):
+    """The real viewer is never started without a display; the error names the recording."""
+    from study.data import rrd
+
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_SOCKET", raising=False)
+    monkeypatch.setattr(rrd, "rerun_executable", lambda: pytest.fail("no viewer without a display"))
+    recording = tmp_path / "t.rrd"
+    recording.write_bytes(b"")
+    monkeypatch.setattr("study.data.dbtools.find_recording", lambda db, p, t: recording)
+    code, out, err = asa(capsys, "replay", "--db", "x.db", "--participant", "P01", "--trial", "1")
+    line = one_line_error(code, err)
+    assert "no display" in line and str(recording) in line and "opened" not in out
+
+
+def test_the_real_viewer_without_an_x_server_is_reported(tmp_path, monkeypatch):
+    """rerun itself, given a display that does not exist, dies at once: reported."""
+    from study.data import rrd
+
+    monkeypatch.setenv("DISPLAY", ":97")
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    recording = tmp_path / "t.rrd"
+    recording.write_bytes(b"")
+    try:
+        process = rrd.open_viewer(recording, grace_s=20.0)
+    except ValueError as error:
+        assert "did not start" in str(error) and "\n" not in str(error)
+    else:  # an X server answers on :97 after all
+        process.kill()
+        process.wait()

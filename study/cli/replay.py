@@ -27,7 +27,9 @@ from study.cli import db_option
     "instead of opening the viewer.",
 )
 def replay(db: str, participant: str, trial: int, print_only: bool) -> None:
-    """Open the rerun viewer on one trial's recording (rerun's analytics switched off).
+    """Open the rerun viewer on one trial's recording (rerun's analytics switched off;
+    its server listens on localhost only). A viewer that cannot start (no display) is
+    reported with one line and exit status 2.
 
     Example: asa replay --db study.db --participant P01 --trial 7 --print
     """
@@ -39,5 +41,8 @@ def replay(db: str, participant: str, trial: int, print_only: bool) -> None:
     if print_only:
         click.echo(format_summary(recording_summary(path)))
         return
-    process = open_viewer(path)
-    click.echo(f"opened the rerun viewer on {path} (pid {process.pid})")
+    process = open_viewer(path)  # a viewer that fails at once: one line, exit status 2
+    if process.returncode is None:
+        click.echo(f"opened the rerun viewer on {path} (pid {process.pid}; localhost only)")
+    else:
+        click.echo(f"the rerun viewer on {path} ended (exit status 0)")
