@@ -107,6 +107,29 @@ def test_a_url_whose_driver_is_missing_is_one_line(tmp_path, monkeypatch, capsys
     assert list(tmp_path.iterdir()) == []  # not taken as a path
 
 
+def test_no_command_normalises_its_db_option():
+    import click
+
+    from study.cli import COMMANDS, cli
+
+    ctx = click.Context(cli)
+    found = []
+    stack = [cli.get_command(ctx, name) for name in COMMANDS]
+    while stack:
+        command = stack.pop()
+        if isinstance(command, click.Group):
+            stack += list(command.commands.values())
+            continue
+        for param in command.params:
+            if "--db" in getattr(param, "opts", ()):
+                found.append(command.name)
+                assert param.type is click.STRING, command.name  # not click.Path
+                assert param.type.convert("postgresql://host/db", param, ctx) == (
+                    "postgresql://host/db"
+                )
+    assert {"check", "export", "replay", "report", "run", "synth"} <= set(found)
+
+
 # ---------------------------------------------------------------- empty and foreign files
 
 
