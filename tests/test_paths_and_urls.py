@@ -147,7 +147,9 @@ def _foreign_files(folder: Path) -> dict[str, Path]:
     con = sqlite3.connect(bare)
     con.execute("PRAGMA user_version = 3")
     con.close()
-    return {"empty": empty, "text": text, "other": other, "bare": bare}
+    corrupt = folder / "corrupt.db"  # the SQLite header, then no database
+    corrupt.write_bytes(b"SQLite format 3\x00" + bytes(range(256)) * 8)
+    return {"empty": empty, "text": text, "other": other, "bare": bare, "corrupt": corrupt}
 
 
 def test_empty_and_foreign_files_are_refused_and_left_untouched(tmp_path, capsys):
