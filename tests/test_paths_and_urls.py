@@ -130,6 +130,16 @@ def test_no_command_normalises_its_db_option():
     assert {"check", "export", "replay", "report", "run", "synth"} <= set(found)
 
 
+def test_a_server_style_url_is_made_a_study_when_empty_and_refused_read_only():
+    """``sqlite://`` (in memory) goes the way of a server URL: no file checks."""
+    engine = open_database("sqlite://")
+    with Session(engine) as s:
+        assert s.get(Meta, "schema_version").value == str(SCHEMA_VERSION)
+    engine.dispose()
+    with pytest.raises(ValueError, match="holds no tables"):
+        open_database("sqlite://", create=False)
+
+
 # ---------------------------------------------------------------- empty and foreign files
 
 

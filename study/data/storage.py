@@ -369,7 +369,11 @@ def _open_sqlite(
     _check_schema(db, tables, version)
     engine = _sqlite_engine(path, given, durable=durable, readonly=readonly)
     if create and not set(Base.metadata.tables) <= tables:
-        _add_tables(engine, sqlite=True)  # an older database: the tables added since
+        try:
+            _add_tables(engine, sqlite=True)  # an older database: the tables added since
+        except BaseException:
+            engine.dispose()
+            raise
     return engine
 
 
@@ -399,20 +403,24 @@ def _add_tables(engine: Engine, *, sqlite: bool) -> None:
 def _open_server(db: str | Path, url: str, create: bool) -> Engine:
     """A server database (any SQLAlchemy URL but SQLite); an empty one is a new study."""
     engine = create_engine(url)
-    tables = set(inspect(engine).get_table_names())
-    if tables or not create:
-        version = None
-        if "meta" in tables:
-            with Session(engine) as s:
-                row = s.get(Meta, "schema_version")
-            version = None if row is None else row.value
-        _check_schema(db, tables, version)
-    if create and not set(Base.metadata.tables) <= tables:
-        try:
-            _add_tables(engine, sqlite=False)
-        except DBAPIError:  # another process made them at the same moment
-            if not set(Base.metadata.tables) <= set(inspect(engine).get_table_names()):
-                raise
+    try:
+        tables = set(inspect(engine).get_table_names())
+        if tables or not create:
+            version = None
+            if "meta" in tables:
+                with Session(engine) as s:
+                    row = s.get(Meta, "schema_version")
+                version = None if row is None else row.value
+            _check_schema(db, tables, version)
+        if create and not set(Base.metadata.tables) <= tables:
+            try:
+                _add_tables(engine, sqlite=False)
+            except DBAPIError:  # another process made them at the same moment
+                if not set(Base.metadata.tables) <= set(inspect(engine).get_table_names()):
+                    raise
+    except BaseException:
+        engine.dispose()
+        raise
     return engine
 
 
