@@ -47,6 +47,8 @@ def save_ros_map(grid: OccupancyGrid, directory: str | Path, stem: str) -> tuple
         and the YAML description, in that order.
     """
     directory = Path(directory)
+    if stem in ("", ".", "..") or any(c in stem for c in "/\\\x00"):
+        raise ValueError(f"map file name {stem!r}: must be one plain file name, no folder part")
     directory.mkdir(parents=True, exist_ok=True)
     pgm, yaml = directory / f"{stem}.pgm", directory / f"{stem}.yaml"
     img = _image_rows(grid)

@@ -4,6 +4,7 @@ result, ``asa db check`` accepts it, bad options are refused."""
 
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -78,10 +79,13 @@ text = "Done."
 """
 
 WALL_CLOCK = {"created_at", "started_at", "ended_at"}
+# a recording's file name begins with its study's tag, which hashes the creation time
+STUDY_TAG = re.compile(r"(?<=/)[0-9a-f]{8}_(?=s\d+_)")
 
 
 def _tables(db: Path) -> dict[str, list[tuple]]:
-    """Every results table, rows in id order, wall-clock columns left out."""
+    """Every results table, rows in id order, wall-clock columns left out (and the study
+    tag, derived from the creation time, cut from recording paths)."""
     engine = open_database(db, create=False)
     out = {}
     with engine.connect() as conn:
@@ -89,7 +93,12 @@ def _tables(db: Path) -> dict[str, list[tuple]]:
             if name == "meta":
                 continue
             cols = [c for c in table.c if c.name not in WALL_CLOCK]
-            out[name] = [tuple(r) for r in conn.execute(select(*cols).order_by(table.c.id))]
+            rows = conn.execute(select(*cols).order_by(table.c.id))
+            out[name] = [
+                tuple(STUDY_TAG.sub("", v) if c.name == "recording_path" else v
+                      for c, v in zip(cols, r, strict=True))
+                for r in rows
+            ]  # fmt: skip
     engine.dispose()
     return out
 

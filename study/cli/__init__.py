@@ -19,12 +19,15 @@ import contextlib
 import importlib
 import os
 import sys
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
+from typing import Any, TypeVar
 
 import click
 
 from study import __version__
 from study._blas import limit_blas_threads
+
+F = TypeVar("F", bound=Callable[..., Any])
 
 # name -> ("module:attribute", one-line help shown by ``asa --help``)
 COMMANDS: dict[str, tuple[str, str]] = {
@@ -116,6 +119,15 @@ def flag_errors(*parameters: str) -> Iterator[None]:
                 flag = "--" + name.replace("_", "-")
                 raise ValueError(flag + text[len(name) :]) from error
         raise
+
+
+def db_option(help: str, *, name: str = "db") -> Callable[[F], F]:
+    """The ``--db`` option: a file path or a SQLAlchemy URL, passed on as written.
+
+    A plain string, not ``click.Path``: a path type would normalise
+    ``postgresql://host/db`` into ``postgresql:/host/db`` (docs/decisions.md).
+    """
+    return click.option("--db", name, required=True, type=str, metavar="PATH|URL", help=help)
 
 
 def main(argv: list[str] | None = None) -> None:

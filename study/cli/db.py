@@ -5,9 +5,10 @@ from __future__ import annotations
 
 import json
 import sys
-from pathlib import Path
 
 import click
+
+from study.cli import db_option
 
 
 @click.group("db")
@@ -16,16 +17,10 @@ def db() -> None:
 
 
 @db.command("check")
-@click.option(
-    "--db",
-    "path",
-    required=True,
-    type=click.Path(dir_okay=False, path_type=Path),
-    help="Study database (SQLite file).",
-)
+@db_option("Study database: a SQLite file or a SQLAlchemy URL (opened read-only).", name="path")
 @click.option("--json", "as_json", is_flag=True, help="One JSON object on stdout.")
 @click.option("--no-verify", is_flag=True, help="Skip `rerun rrd verify` on the recordings.")
-def check_command(path: Path, as_json: bool, no_verify: bool) -> None:
+def check_command(path: str, as_json: bool, no_verify: bool) -> None:
     """Check a study database: every completed trial has its samples (~20 per simulated
     second), its events, its outcome, its recording (verified with rerun) and, for main
     trials, its questionnaire; no orphan rows; no trial left running outside a running

@@ -6,29 +6,28 @@ from pathlib import Path
 
 import click
 
-from study.cli import flag_errors
+from study.cli import db_option, flag_errors
 
 
 @click.command("export")
-@click.option(
-    "--db",
-    "path",
-    required=True,
-    type=click.Path(dir_okay=False, path_type=Path),
-    help="Study database (SQLite file).",
-)
+@db_option("Study database: a SQLite file or a SQLAlchemy URL (opened read-only).", name="path")
 @click.option(
     "--out",
     required=True,
     type=click.Path(file_okay=False, path_type=Path),
     help="Folder for the CSV files (created if missing).",
 )
-def export_command(path: Path, out: Path) -> None:
+@click.option("--force", is_flag=True, help="Overwrite CSV files of an earlier export in --out.")
+def export_command(path: str, out: Path, force: bool) -> None:
     """Write one CSV per table (study, participant, session, trial, sample, event,
-    question, response, meta) into --out; JSON columns as JSON text."""
+    question, response, meta) into --out; JSON columns as JSON text.
+
+    An existing CSV of the same name in --out is not overwritten without --force (the
+    command then writes nothing); other files in --out are left alone.
+    """
     from study.data.dbtools import export
 
     with flag_errors("out"):
-        written = export(path, out)
+        written = export(path, out, force=force)
     for name, n in written.items():
         click.echo(f"{out / (name + '.csv')}: {n} rows")

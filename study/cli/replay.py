@@ -4,18 +4,13 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import click
+
+from study.cli import db_option
 
 
 @click.command()
-@click.option(
-    "--db",
-    required=True,
-    type=click.Path(path_type=Path),
-    help="The study database (SQLite file).",
-)
+@db_option("The study database: a SQLite file or a SQLAlchemy URL (opened read-only).")
 @click.option("--participant", required=True, help="Participant code, e.g. P01.")
 @click.option(
     "--trial",
@@ -31,8 +26,10 @@ import click
     help="Print what the recording holds (entities, rows, time range, camera frames) "
     "instead of opening the viewer.",
 )
-def replay(db: Path, participant: str, trial: int, print_only: bool) -> None:
-    """Open the rerun viewer on one trial's recording (rerun's analytics switched off).
+def replay(db: str, participant: str, trial: int, print_only: bool) -> None:
+    """Open the rerun viewer on one trial's recording (rerun's analytics switched off;
+    its server listens on localhost only). A viewer that cannot start (no display) is
+    reported with one line and exit status 2.
 
     Example: asa replay --db study.db --participant P01 --trial 7 --print
     """
@@ -44,5 +41,8 @@ def replay(db: Path, participant: str, trial: int, print_only: bool) -> None:
     if print_only:
         click.echo(format_summary(recording_summary(path)))
         return
-    process = open_viewer(path)
-    click.echo(f"opened the rerun viewer on {path} (pid {process.pid})")
+    process = open_viewer(path)  # a viewer that fails at once: one line, exit status 2
+    if process.returncode is None:
+        click.echo(f"opened the rerun viewer on {path} (pid {process.pid}; localhost only)")
+    else:
+        click.echo(f"the rerun viewer on {path} ended (exit status 0)")

@@ -7,14 +7,14 @@ from pathlib import Path
 
 import click
 
+from study.cli import db_option
+
 
 @click.command("report")
-@click.option(
-    "--db",
-    "source",
-    required=True,
-    type=click.Path(path_type=Path),
-    help="Study database (SQLite file), or a folder written by `asa export`.",
+@db_option(
+    "Study database (a SQLite file or a SQLAlchemy URL, opened read-only), or a folder "
+    "written by `asa export`.",
+    name="source",
 )
 @click.option(
     "--out",
@@ -28,7 +28,7 @@ import click
     multiple=True,
     help="Only this metric (repeatable); default every metric with data.",
 )
-def report_command(source: Path, out: Path, metrics: tuple[str, ...]) -> None:
+def report_command(source: str, out: Path, metrics: tuple[str, ...]) -> None:
     """Analyse a study: per metric a repeated-measures ANOVA with the protocol's alpha, gate
     and post-hoc form, figures (PNG, SVG), tables (CSV), results.json and one
     self-contained report.html."""

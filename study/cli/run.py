@@ -29,6 +29,8 @@ from typing import Any
 
 import click
 
+from study.cli import db_option
+
 INPUTS = ("scripted", "human", "synthetic")  # study.engine.launch.INPUTS
 # the library's errors name run_session's parameters; the experimenter types flags
 _FLAGS = (
@@ -42,12 +44,7 @@ SCREEN_STATUS_EVERY_S = 1.0  # [s] wall time between the screen's status lines
 @click.command("run")
 @click.option("--protocol", "protocol", required=True, help="Shipped protocol name or TOML file.")
 @click.option("--participant", "code", required=True, help="Pseudonymous code, e.g. P01.")
-@click.option(
-    "--db",
-    required=True,
-    type=click.Path(dir_okay=False, path_type=Path),
-    help="Study database (SQLite file, created if missing).",
-)
+@db_option("Study database: a SQLite file (created if missing) or a SQLAlchemy URL.")
 @click.option(
     "--input",
     "input_kind",
@@ -149,7 +146,7 @@ def run(
         raise SystemExit(130)  # as the shell reports a process stopped by Ctrl-C
 
 
-def _interrupted(code: str, db: Path, params: dict[str, Any]) -> bool:
+def _interrupted(code: str, db: str, params: dict[str, Any]) -> bool:
     """Print the trial cut short and the resume command; True when one was cut short
     by Ctrl-C or an error (not, e.g., a participant excluded after practice)."""
     from study.cli.terminal import interruption_lines, resume_command

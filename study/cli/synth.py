@@ -11,7 +11,7 @@ from pathlib import Path
 
 import click
 
-from study.cli import flag_errors
+from study.cli import db_option, flag_errors
 
 
 @click.command("synth")
@@ -29,12 +29,7 @@ from study.cli import flag_errors
     default=None,
     help="Worker processes; default the number of CPUs.",
 )
-@click.option(
-    "--db",
-    required=True,
-    type=click.Path(dir_okay=False, path_type=Path),
-    help="Study database (SQLite file; created, or continued if interrupted).",
-)
+@db_option("Study database (SQLite file; created, or continued if interrupted).")
 @click.option(
     "--recordings",
     type=click.Path(file_okay=False, path_type=Path),

@@ -13,6 +13,7 @@ from pathlib import Path
 import click
 
 from autonomy.training import format_summary
+from study.cli import flag_errors
 from study.jobs.training import train_model
 
 
@@ -38,10 +39,15 @@ from study.jobs.training import train_model
     type=int,
     help="Seed of every random choice in training.",
 )
-def train_command(demonstrations: Path, out: Path, seed: int) -> None:
-    """Train the contextual-task model (DP-GMM clusters + SOGP classifier) and save it."""
+@click.option("--force", is_flag=True, help="Overwrite --out if it exists.")
+def train_command(demonstrations: Path, out: Path, seed: int, force: bool) -> None:
+    """Train the contextual-task model (DP-GMM clusters + SOGP classifier) and save it.
+
+    An existing --out is not overwritten without --force.
+    """
     try:
-        model = train_model(demonstrations, out, seed=seed)
+        with flag_errors("out"):
+            model = train_model(demonstrations, out, seed=seed, force=force)
     except ValueError as error:
         prefix = f"{out}: out "
         if str(error).startswith(prefix):  # the job names its parameter, the CLI its flag

@@ -13,6 +13,7 @@ columns in the table's order, JSON columns as JSON text, times in ISO 8601, NULL
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import datetime as dt
 import json
@@ -339,6 +340,35 @@ def find_recording(db: str | Path, participant: str, trial: int) -> Path:
     return path
 
 
+def remove_recordings_of(db: str | Path) -> list[Path]:
+    """Delete the recording files the SQLite database ``db`` refers to, and their
+    participant folders when that leaves them empty; returns the files deleted.
+
+    For a scratch database about to be thrown away (a synthetic participant run again
+    after a crash): only its own files go, never the rest of a shared recordings folder.
+    A missing or unreadable database deletes nothing.
+    """
+    try:
+        engine = open_database(db, create=False)
+    except (ValueError, FileNotFoundError):
+        return []
+    try:
+        with Session(engine) as s:
+            stored = [p for p in s.scalars(select(Trial.recording_path)) if p]
+    finally:
+        engine.dispose()
+    folder = database_file(db).parent
+    removed = []
+    for rel in stored:
+        path = Path(rel) if Path(rel).is_absolute() else folder / rel
+        if path.is_file():
+            path.unlink()
+            removed.append(path)
+            with contextlib.suppress(OSError):
+                path.parent.rmdir()  # only when empty
+    return removed
+
+
 # ------------------------------------------------------------------------- export
 
 
@@ -356,18 +386,29 @@ def _cell(value: Any, is_json: bool) -> str:
     return str(value)
 
 
-def export(db: str | Path, out: str | Path) -> dict[str, int]:
-    """Write one CSV per table of the study database into folder ``out``.
+def export(db: str | Path, out: str | Path, *, force: bool = False) -> dict[str, int]:
+    """Write one CSV per table of the study database into folder ``out`` (the database is
+    opened read-only).
 
     Returns
     -------
     dict
         Table name -> rows written.
+
+    Raises
+    ------
+    ValueError
+        ``out`` is a file, or a CSV file of the export exists already and ``force`` is
+        false (naming it; nothing is written); see :func:`open_database` for the database.
     """
-    engine = open_database(db, create=False)
+    from study.data.paths import refuse_existing
+
     folder = Path(out)
     if folder.exists() and not folder.is_dir():
         raise ValueError(f"out: {out} must be a folder, and this is a file")
+    targets = [folder / f"{table.name}.csv" for table in Base.metadata.sorted_tables]
+    refuse_existing(targets, force=force)
+    engine = open_database(db, create=False)
     folder.mkdir(parents=True, exist_ok=True)
     written: dict[str, int] = {}
     try:

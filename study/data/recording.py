@@ -14,6 +14,8 @@ in few large chunks (:class:`RecorderSettings`). Reading back, verifying and vie
 
 from __future__ import annotations
 
+import datetime as dt
+import hashlib
 import io
 import math
 import uuid
@@ -73,6 +75,18 @@ class RecorderSettings:
                 f"recorder laser_stride, camera_width_px: must be >= 1, got "
                 f"{self.laser_stride}, {self.camera_width_px}"
             )
+
+
+def study_tag(protocol_sha256: str, seed: int, created_at: dt.datetime, study_id: int) -> str:
+    """A study's short identity for file names: the first 8 hex digits of the SHA-256 of
+    its protocol hash, seed, creation time (UTC, read back from the database) and row id.
+
+    Recording files begin with it, so studies sharing a ``--recordings`` folder never
+    name a file alike (issue 20).
+    """
+    when = created_at.replace(tzinfo=None).isoformat(sep=" ", timespec="microseconds")
+    text = f"{protocol_sha256}:{seed}:{when}:{study_id}"
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()[:8]
 
 
 def recording_id(trial_key: str) -> uuid.UUID:

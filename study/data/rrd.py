@@ -7,6 +7,8 @@ import os
 import re
 import shutil
 import subprocess
+import sys
+import tempfile
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -18,6 +20,9 @@ from study.data.recording import TIMELINE
 
 # rerun's analytics are off in every rerun process the platform starts (docs/decisions.md).
 ANALYTICS_OFF_ENV: dict[str, str] = {"CI": "1"}
+VIEWER_BIND = "127.0.0.1"  # the replay viewer's gRPC server listens on localhost only
+VIEWER_GRACE_S = 2.0  # [s] a viewer that fails (no display, no GPU) does so within this
+_ANSI = re.compile(r"\x1b\[[0-9;]*[A-Za-z]")
 
 
 def rerun_environment() -> dict[str, str]:
@@ -201,23 +206,73 @@ def verify_many(paths: list[Path], *, timeout_s: float = 600.0) -> dict[Path, st
 
 def viewer_command(path: str | Path) -> list[str]:
     """The command that opens the rerun viewer on ``path`` (run it with
-    :func:`rerun_environment`)."""
-    return [rerun_executable(), str(path)]
+    :func:`rerun_environment`): its gRPC server bound to :data:`VIEWER_BIND` (rerun's
+    default is every interface, 0.0.0.0) on a free port (``--new``: never handed to
+    whatever listens on rerun's default port)."""
+    return [rerun_executable(), "--bind", VIEWER_BIND, "--new", str(path)]
 
 
-def open_viewer(path: str | Path) -> subprocess.Popen[bytes]:
-    """Start the rerun viewer on ``path`` in its own process (does not wait for it)."""
-    return subprocess.Popen(
-        viewer_command(path),
-        env=rerun_environment(),
-        stdin=subprocess.DEVNULL,
-        start_new_session=True,
+def has_display() -> bool:
+    """Whether a window can be opened: on Linux and the BSDs ``DISPLAY`` or a Wayland
+    variable is set; elsewhere assumed."""
+    if not sys.platform.startswith(("linux", "freebsd", "openbsd", "netbsd")):
+        return True
+    return any(os.environ.get(v) for v in ("DISPLAY", "WAYLAND_DISPLAY", "WAYLAND_SOCKET"))
+
+
+def open_viewer(path: str | Path, *, grace_s: float = VIEWER_GRACE_S) -> subprocess.Popen[bytes]:
+    """Start the rerun viewer on ``path`` in its own process, bound to localhost.
+
+    Waits up to ``grace_s`` [s] for it to fail; a viewer still running then is returned
+    (its ``returncode`` None), as is one that ended cleanly within it.
+
+    Raises
+    ------
+    ValueError
+        One line naming the recording: no display to open a window on, or the viewer
+        ended with an error within ``grace_s`` (with rerun's own error line).
+    """
+    if not has_display():
+        raise ValueError(
+            f"{path}: cannot open the rerun viewer: no display (DISPLAY and WAYLAND_DISPLAY "
+            "are not set); `asa replay --print` shows what the recording holds"
+        )
+    with tempfile.TemporaryFile() as log:  # the viewer keeps its copy of the descriptor
+        process = subprocess.Popen(
+            viewer_command(path),
+            env=rerun_environment(),
+            stdin=subprocess.DEVNULL,
+            stdout=log,
+            stderr=subprocess.STDOUT,
+            start_new_session=True,
+        )
+        try:
+            code = process.wait(timeout=grace_s)
+        except subprocess.TimeoutExpired:
+            return process
+        if code == 0:
+            return process
+        log.seek(0)
+        reason = _viewer_error(log.read().decode("utf-8", "replace")) or f"exit status {code}"
+    raise ValueError(
+        f"{path}: the rerun viewer did not start ({reason}); `asa replay --print` shows what "
+        "the recording holds"
     )
+
+
+def _viewer_error(output: str) -> str:
+    """rerun's error line from its output (ANSI colours removed), else its last line."""
+    lines = [" ".join(_ANSI.sub("", line).split()) for line in output.splitlines()]
+    lines = [line for line in lines if line]
+    errors = [line for line in lines if line.startswith("Error")]
+    return (errors or lines or [""])[-1][:300]
 
 
 __all__ = [
     "ANALYTICS_OFF_ENV",
+    "VIEWER_BIND",
     "format_summary",
+    "has_display",
     "open_viewer",
     "recording_summary",
     "rerun_environment",

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import datetime as dt
 import functools
+import sqlite3
 from pathlib import Path
 from typing import Any
 
@@ -33,9 +34,18 @@ from sqlalchemy import (
     inspect,
     select,
 )
-from sqlalchemy.engine import Engine
-from sqlalchemy.exc import DBAPIError
+from sqlalchemy.engine import URL, Engine
+from sqlalchemy.exc import ArgumentError, DBAPIError, NoSuchModuleError
 from sqlalchemy.orm import DeclarativeBase, Mapped, Session, mapped_column, relationship
+
+from study.data.dbfile import (
+    check_existing,
+    create_atomically,
+    is_url,
+    probe,
+    ro_connect,
+    sqlite_url_file,
+)
 
 SCHEMA_VERSION = 1
 BUSY_TIMEOUT_MS = 30_000  # [ms] wait for another process's write lock
@@ -214,86 +224,203 @@ class Response(Base):
 
 
 def database_url(db: str | Path) -> str:
-    """A path becomes a SQLite URL; anything with ``://`` is taken as a SQLAlchemy URL."""
+    """``db`` as a SQLAlchemy URL: text of the form ``scheme://...`` is taken as written
+    (``sqlite:///x.db``, ``postgresql://host/study``); anything else is a file path and
+    becomes ``sqlite:///<absolute path>``."""
     text = str(db)
-    return text if "://" in text else f"sqlite:///{Path(text).resolve()}"
+    return text if is_url(text) else f"sqlite:///{Path(text).resolve()}"
 
 
 def database_file(db: str | Path) -> Path:
-    """The SQLite file of ``db`` (a path or URL); for other databases a stand-in path in
-    the working folder whose parent and stem name the recordings folder."""
-    url = database_url(db)
-    if url.startswith("sqlite:///"):
-        return Path(url[len("sqlite:///") :])
-    return Path.cwd() / "asa_study.db"
+    """The SQLite file of ``db`` (a path or a ``sqlite://`` URL), absolute; for other
+    databases a stand-in path in the working folder whose parent and stem name the
+    recordings folder."""
+    text = str(db)
+    if not is_url(text):
+        return Path(text).resolve()
+    path = sqlite_url_file(text)
+    return path if path is not None else Path.cwd() / "asa_study.db"
 
 
-def _sqlite_pragmas(dbapi_connection: Any, _record: Any, *, durable: bool = True) -> None:
+def _sqlite_pragmas(
+    dbapi_connection: Any, _record: Any, *, durable: bool = True, readonly: bool = False
+) -> None:
     cursor = dbapi_connection.cursor()
+    # first: another process (asa db check, export, a second session) may hold the write
+    # lock, also while this connection switches to WAL
+    cursor.execute(f"PRAGMA busy_timeout={BUSY_TIMEOUT_MS}")
+    cursor.execute("PRAGMA foreign_keys=ON")
+    if readonly:
+        cursor.execute("PRAGMA query_only=ON")
+        cursor.close()
+        return
     cursor.execute("PRAGMA journal_mode=WAL")
     # FULL: a committed transaction survives a power cut, not only a crash of the process
     # (WAL + NORMAL may lose the last commits); the trial loop commits about once a second.
     # OFF only for scratch databases that are thrown away after a crash anyway.
     cursor.execute(f"PRAGMA synchronous={'FULL' if durable else 'OFF'}")
-    # another process (asa db check, export, a second session) may hold the write lock
-    cursor.execute(f"PRAGMA busy_timeout={BUSY_TIMEOUT_MS}")
-    cursor.execute("PRAGMA foreign_keys=ON")
     cursor.close()
 
 
-def open_database(db: str | Path, *, create: bool = True, durable: bool = True) -> Engine:
+def open_database(
+    db: str | Path, *, create: bool = True, durable: bool = True, readonly: bool | None = None
+) -> Engine:
     """Open (and with ``create`` make) a study database and check it is ours.
 
-    Raises ``ValueError`` naming the database when it exists but was not made by this
-    platform, by a newer schema version, is not an SQLite file at all, or cannot be
-    opened or written (a missing folder, no permission, a full disk).
+    ``db`` is a file path or a SQLAlchemy URL, as written (:func:`database_url`). A file
+    that does not exist is a new study (made atomically, tables and schema version in one
+    go, so two processes starting on a fresh file both see a whole study); an existing
+    file must be an asa-study database and is left untouched when it is not.
+
+    ``readonly`` (default: ``not create``) opens an SQLite file without writing anything
+    (no tables, no ``-wal``/``-shm`` files; :mod:`study.data.dbfile`), so a study the user
+    cannot write can be checked, exported and reported.
+
+    Raises ``ValueError`` (one line naming the database) when it is a folder, an empty
+    file, not an SQLite file, not made by this platform, made by a newer schema version,
+    or cannot be opened or written (a missing folder, no permission, a full disk), and
+    for a URL whose database driver is not installed; ``FileNotFoundError`` when the file
+    does not exist and ``create`` is false.
 
     ``durable=False`` skips SQLite's fsync on commit: only for a scratch database that is
     deleted and rebuilt when its process dies (a synthetic study's per-participant file,
     :mod:`study.jobs.synth`); a study database always keeps the default.
     """
+    readonly = (not create) if readonly is None else readonly
+    create = create and not readonly
     url = database_url(db)
-    if url.startswith("sqlite:///"):
-        path = Path(url[10:])
-        if not create and not path.exists():
-            raise FileNotFoundError(2, "No such file", str(path))
-        if not path.parent.is_dir():
-            raise ValueError(f"{db}: the folder {path.parent} does not exist")
     try:
-        return _open(db, url, create, durable)
+        if is_url(str(db)) and sqlite_url_file(url) is None:
+            return _open_server(db, url, create)
+        return _open_sqlite(db, url, create=create, durable=durable, readonly=readonly)
     except DBAPIError as error:
         reason = " ".join(str(error.orig).split()) if error.orig is not None else str(error)
         raise ValueError(
             f"{db}: cannot be used as a study database ({reason}); give an asa-study "
-            "SQLite file or a new file name in a writable folder"
+            "database or a new file name in a writable folder"
+        ) from error
+    except sqlite3.Error as error:
+        raise ValueError(
+            f"{db}: cannot be read as a study database ({' '.join(str(error).split())})"
+        ) from error
+    except ImportError as error:
+        raise ValueError(
+            f"{db}: the database driver for this URL is not installed ({error}); give a "
+            "SQLite file path, or install the driver"
+        ) from error
+    except (NoSuchModuleError, ArgumentError) as error:
+        raise ValueError(
+            f"{db}: not a database URL SQLAlchemy knows ({' '.join(str(error).split())}); "
+            "give a SQLite file path or a SQLAlchemy URL such as sqlite:///study.db"
         ) from error
 
 
-def _open(db: str | Path, url: str, create: bool, durable: bool) -> Engine:
-    engine = create_engine(url)
-    if engine.dialect.name == "sqlite":
-        event.listen(engine, "connect", functools.partial(_sqlite_pragmas, durable=durable))
-    tables = set(inspect(engine).get_table_names())
-    ours = set(Base.metadata.tables)
-    if tables and not {"meta", "study"} <= tables:
+def _check_schema(db: str | Path, tables: set[str], version: str | None) -> None:
+    """Refuse a database without the asa tables or with a schema version not ours."""
+    if not tables:
+        raise ValueError(f"{db}: holds no tables; not an asa-study database")
+    if not {"meta", "study"} <= tables:
         raise ValueError(f"{db}: not an asa-study database (tables: {', '.join(sorted(tables))})")
-    if tables:
-        with Session(engine) as s:
-            row = s.get(Meta, "schema_version")
-        if row is None or not row.value.isdigit():
+    if version is None or not version.isdigit():
+        raise ValueError(f"{db}: field 'meta.schema_version' is missing; not an asa-study database")
+    if int(version) > SCHEMA_VERSION:
+        raise ValueError(
+            f"{db}: field 'meta.schema_version' is {version}; this platform reads up to "
+            f"{SCHEMA_VERSION}, upgrade asa-study"
+        )
+
+
+def _sqlite_engine(path: Path, url: str | None, *, durable: bool, readonly: bool) -> Engine:
+    """An engine on the SQLite file ``path``: read-only (:func:`dbfile.ro_connect`), else
+    on ``url`` as written (a URL the user gave) or on ``path`` itself."""
+    nominal = URL.create("sqlite", database=str(path))
+    if readonly:
+        engine = create_engine(nominal, creator=lambda: ro_connect(path))
+    elif url is not None:
+        engine = create_engine(url)
+    else:
+        engine = create_engine(
+            nominal, creator=lambda: sqlite3.connect(str(path), check_same_thread=False)
+        )
+    pragmas = functools.partial(_sqlite_pragmas, durable=durable, readonly=readonly)
+    event.listen(engine, "connect", pragmas)
+    return engine
+
+
+def _open_sqlite(
+    db: str | Path, url: str, *, create: bool, durable: bool, readonly: bool
+) -> Engine:
+    path = database_file(db)
+    given = url if is_url(str(db)) else None
+    if not path.exists():
+        if not create:
+            raise FileNotFoundError(2, "No such file", str(path))
+        if not path.parent.is_dir():
+            raise ValueError(f"{db}: the folder {path.parent} does not exist")
+        try:
+            create_atomically(path, functools.partial(_new_sqlite, durable=durable))
+        except OSError as error:
             raise ValueError(
-                f"{db}: field 'meta.schema_version' is missing; not an asa-study database"
+                f"{db}: cannot create the study database in {path.parent} "
+                f"({error.strerror or error})"
+            ) from None
+    check_existing(path, db)
+    tables, version = probe(path)
+    _check_schema(db, tables, version)
+    engine = _sqlite_engine(path, given, durable=durable, readonly=readonly)
+    if create and not set(Base.metadata.tables) <= tables:
+        try:
+            _add_tables(engine, sqlite=True)  # an older database: the tables added since
+        except BaseException:
+            engine.dispose()
+            raise
+    return engine
+
+
+def _new_sqlite(path: Path, *, durable: bool) -> None:
+    """A complete new study file at ``path``: every table and the schema version."""
+    engine = _sqlite_engine(path, None, durable=durable, readonly=False)
+    try:
+        _add_tables(engine, sqlite=True)
+    finally:
+        engine.dispose()  # the last connection checkpoints and removes the -wal file
+
+
+def _add_tables(engine: Engine, *, sqlite: bool) -> None:
+    """Create the missing tables and stamp the schema version in one transaction (for
+    SQLite under the write lock, ``BEGIN IMMEDIATE``, so concurrent openers wait)."""
+    with engine.connect() as conn:
+        if sqlite:
+            conn.exec_driver_sql("BEGIN IMMEDIATE")
+        Base.metadata.create_all(conn)
+        if conn.execute(select(Meta.value).where(Meta.key == "schema_version")).first() is None:
+            conn.execute(
+                Meta.__table__.insert().values(key="schema_version", value=str(SCHEMA_VERSION))
             )
-        if int(row.value) > SCHEMA_VERSION:
-            raise ValueError(
-                f"{db}: field 'meta.schema_version' is {row.value}; this platform reads up to "
-                f"{SCHEMA_VERSION}, upgrade asa-study"
-            )
-    if create and not ours <= tables:
-        Base.metadata.create_all(engine)
-        with Session(engine) as s, s.begin():
-            if s.get(Meta, "schema_version") is None:
-                s.add(Meta(key="schema_version", value=str(SCHEMA_VERSION)))
+        conn.commit()
+
+
+def _open_server(db: str | Path, url: str, create: bool) -> Engine:
+    """A server database (any SQLAlchemy URL but SQLite); an empty one is a new study."""
+    engine = create_engine(url)
+    try:
+        tables = set(inspect(engine).get_table_names())
+        if tables or not create:
+            version = None
+            if "meta" in tables:
+                with Session(engine) as s:
+                    row = s.get(Meta, "schema_version")
+                version = None if row is None else row.value
+            _check_schema(db, tables, version)
+        if create and not set(Base.metadata.tables) <= tables:
+            try:
+                _add_tables(engine, sqlite=False)
+            except DBAPIError:  # another process made them at the same moment
+                if not set(Base.metadata.tables) <= set(inspect(engine).get_table_names()):
+                    raise
+    except BaseException:
+        engine.dispose()
+        raise
     return engine
 
 

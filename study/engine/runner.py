@@ -24,13 +24,15 @@ from sim.occupancy import build_grid
 from sim.scenario import load_scenario
 from sim.semantics import derive_components
 from sim.world import World
-from study.data.recording import RecorderSettings
+from study.data.paths import file_in
+from study.data.recording import RecorderSettings, study_tag
 from study.data.storage import (
     TRIAL_FINISHED,
     Event,
     Participant,
     Response,
     SessionRow,
+    Study,
     Trial,
     database_file,
     utc_now,
@@ -97,8 +99,11 @@ class Scenes:
             scenario = load_scenario(source)
             components = derive_components(scenario)
             grid = build_grid(scenario)
-            if self.maps is not None and not (self.maps / f"{scenario.name}.yaml").exists():
-                self._save_map(grid, scenario.name)
+            if self.maps is not None:
+                what = f"{scenario.source}: field 'name'"
+                if not file_in(self.maps, scenario.name, ".yaml", what=what).exists():
+                    file_in(self.maps, scenario.name, ".pgm", what=what)
+                    self._save_map(grid, scenario.name)
             self._scenes[source] = Scene(
                 name=scenario.name,
                 scenario=scenario,
@@ -121,6 +126,14 @@ class Scenes:
         for scene in self._scenes.values():
             scene.world.close()
         self._scenes.clear()
+
+
+def _study_tag(engine: Engine, study_id: int) -> str:
+    """The study's identity in recording file names (:func:`study_tag`), from its row."""
+    with Session(engine) as s:
+        study = s.get(Study, study_id)
+        assert study is not None  # the participant row refers to it
+        return study_tag(study.protocol_sha256, study.seed, study.created_at, study.id)
 
 
 class SessionRunner:
@@ -165,6 +178,7 @@ class SessionRunner:
             recordings if recordings is not None else self.folder / f"{db_path.stem}_recordings"
         )
         self.scenes = Scenes(self.recordings / "maps")
+        self.study_tag = _study_tag(engine, person.study_id)
         self.trials: list[TrialSummary] = []
 
     # -------------------------------------------------------------- database helpers
@@ -239,7 +253,9 @@ class SessionRunner:
             mode=mode,
             trial_values=values,
             recording_dir=self.folder,
-            recording_rel=lambda tid: recording_relpath(self.folder, self.recordings, code, values),
+            recording_rel=lambda tid: recording_relpath(
+                self.folder, self.recordings, code, values, self.study_tag
+            ),
             session_id=self.session_id,
             clock=self.clock,
             control=self.control,

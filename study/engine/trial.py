@@ -24,6 +24,7 @@ from sim.occupancy import OccupancyGrid
 from sim.scenario import Scenario, point_in_region
 from sim.types import Contact, Pose2D, SemanticComponent
 from sim.world import World
+from study.data.paths import file_in
 from study.data.recording import RecorderSettings, TrialRecorder
 from study.engine.clocks import DT, ExperimenterControl, FreeClock, WallClock
 from study.engine.events import EventSink, TrialWriter, jsonable
@@ -126,15 +127,20 @@ def _finite(value: float | None) -> float | None:
     return None if value is None or not math.isfinite(value) else float(value)
 
 
-def recording_relpath(folder: Path, recordings: Path, code: str, values: dict[str, Any]) -> str:
+def recording_relpath(
+    folder: Path, recordings: Path, code: str, values: dict[str, Any], tag: str = ""
+) -> str:
     """Where a trial's recording goes, relative to the database's ``folder``.
 
-    ``<recordings>/<code>/s<session>_<phase>_<ordinal>_a<attempt>.rrd``; if that file exists
-    already (left by an earlier database of the same name), ``_2``, ``_3``, ... is appended
-    rather than overwriting it.
+    ``<recordings>/<code>/<tag>_s<session>_<phase>_<ordinal>_a<attempt>.rrd``, ``tag`` the
+    study's identity (:func:`study.data.recording.study_tag`), so studies sharing a
+    recordings folder never name a file alike; if that file exists all the same, ``_2``,
+    ``_3``, ... is appended rather than overwriting it. ``code`` and ``tag`` must be plain
+    file names (:func:`study.data.paths.file_in`).
     """
     name = f"s{values['session_id']}_{values['phase']}_{values['ordinal']}_a{values['attempt']}"
-    base = recordings / code / name
+    name = f"{tag}_{name}" if tag else name
+    base = file_in(recordings, code, what="participant code") / name
     path, n = base.with_suffix(".rrd"), 1
     while path.exists():
         n += 1

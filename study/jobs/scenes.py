@@ -184,9 +184,16 @@ def write_map(scenario: Scenario, out: str | Path, *, resolution: float = 0.05) 
     -------
     dict
         ``{"pgm": path, "yaml": path, "png": path}``; files are named after the scenario.
+
+    Raises
+    ------
+    ValueError
+        A bad resolution, an ``out`` that cannot be made, or a scenario ``name`` that is not
+        a plain file name or leads outside ``out`` (nothing is written then).
     """
     from sim.map_files import save_png, save_ros_map
     from sim.occupancy import build_grid
+    from study.data.paths import file_in
 
     if not (math.isfinite(resolution) and resolution > 0):
         raise ValueError(f"resolution: must be a positive number of metres, got {resolution}")
@@ -197,10 +204,13 @@ def write_map(scenario: Scenario, out: str | Path, *, resolution: float = 0.05) 
         raise ValueError(f"{out}: cannot create the output directory: {error.strerror}") from None
     if not out.is_dir():
         raise ValueError(f"{out}: is not a directory")
+    what = f"{scenario.source}: field 'name'"
+    png = file_in(out, scenario.name, ".png", what=what)
+    for suffix in (".pgm", ".yaml"):  # the names save_ros_map builds
+        file_in(out, scenario.name, suffix, what=what)
     grid = build_grid(scenario, resolution=resolution)
     try:
         pgm, yaml = save_ros_map(grid, out, scenario.name)
-        png = out / f"{scenario.name}.png"
         save_png(grid, png)
     except OSError as error:
         raise ValueError(f"{out}: cannot write the map: {error.strerror or error}") from None

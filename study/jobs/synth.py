@@ -13,7 +13,6 @@ from __future__ import annotations
 import concurrent.futures as cf
 import contextlib
 import multiprocessing
-import shutil
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -23,6 +22,7 @@ from typing import Any
 from sqlalchemy import select
 from sqlalchemy.engine import Connection, Engine
 
+from study.data.dbtools import remove_recordings_of
 from study.data.merge import merge_participant, merged_codes, table_rows
 from study.data.storage import TRIAL_FINISHED, Base, open_database
 from study.engine.protocol import Protocol, load_protocol
@@ -89,8 +89,8 @@ def _run_job(job: _Job) -> _Done:
     except ValueError:
         pass
     start = time.perf_counter()
+    remove_recordings_of(job.work_db)  # an earlier attempt's, not the shared folder's
     _remove_db(job.work_db)
-    shutil.rmtree(job.recordings / job.code, ignore_errors=True)
     rng = np.random.default_rng(job.behaviour_seed)
     params = job.population.sample(rng)
     participant = SyntheticParticipant(params, rng)

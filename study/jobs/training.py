@@ -15,6 +15,7 @@ def train_model(
     *,
     seed: int = 0,
     settings: TrainSettings | None = None,
+    force: bool = False,
 ) -> ContextualModel:
     """Train on the moving ticks of the demonstrations in ``demonstrations``
     (:func:`autonomy.training.train`) and save the model to ``out``.
@@ -23,20 +24,25 @@ def train_model(
     the creation date in the metadata differs), which is how the shipped model
     ``autonomy/models/default.npz`` is checked (``autonomy/models/README.md``).
 
+    An existing ``out`` is replaced only with ``force`` (checked before training and
+    again before writing).
+
     Raises
     ------
     ValueError
-        For unreadable demonstrations (naming the file and field), too few points, or an
-        ``out`` that is a directory.
+        For unreadable demonstrations (naming the file and field), too few points, an
+        ``out`` that is a directory, or an existing ``out`` without ``force``.
     """
+    from study.data.paths import refuse_existing
     from study.jobs.demonstrations import load_demonstrations
 
-    demos = load_demonstrations(demonstrations)
-    if len(demos) == 0:
-        raise ValueError(f"{demonstrations}: no moving ticks in these demonstrations")
     out = Path(out)
     if out.exists() and out.is_dir():
         raise ValueError(f"{out}: out must be a file path (e.g. model.npz), not a directory")
+    refuse_existing([out], force=force)
+    demos = load_demonstrations(demonstrations)
+    if len(demos) == 0:
+        raise ValueError(f"{demonstrations}: no moving ticks in these demonstrations")
     model = train(
         demos.q,
         seed=seed,
@@ -51,5 +57,6 @@ def train_model(
             target=demos.target,
         ),
     )
+    refuse_existing([out], force=force)  # made meanwhile by another process?
     save_model(model, out)
     return model

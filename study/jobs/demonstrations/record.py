@@ -19,6 +19,7 @@ from sim.scenario import Scenario
 from sim.semantics import derive_components
 from sim.types import Observation, Pose2D, SemanticComponent
 from sim.world import World
+from study.data.paths import file_in
 from study.jobs.demonstrations.files import (
     _ARRAYS,
     FORMAT_VERSION,
@@ -319,8 +320,9 @@ def _record_scene(
                 settings=settings,
                 free=free,
             )
-            rel = f"{task_type}/{scenario.name}_run_{k}.npz"
-            path = out / rel
+            name = f"{scenario.name}_run_{k}"  # under out/<task>/, whatever the name says
+            path = file_in(out / task_type, name, ".npz", what=f"{scenario.source}: field 'name'")
+            rel = f"{task_type}/{name}.npz"
             path.write_bytes(_npz_bytes(rec.arrays))
             moving = rec.arrays["moving"]
             yield {
