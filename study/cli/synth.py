@@ -2,7 +2,9 @@
 run_synthetic_study`), in worker processes; the database is the same whatever the number
 of workers. One line per finished participant (with the live count) goes to stderr, the
 summary to stdout. Started again after an interruption, it skips the participants already
-in the database and runs the others from scratch."""
+in the database and runs the others from scratch. One synthetic study writes a database at
+a time: a second one waits for the first. A study made with another protocol, seed or
+platform version is refused unless ``--force``."""
 
 from __future__ import annotations
 
@@ -41,6 +43,12 @@ from study.cli import flag_errors
     default=None,
     help="Folder for the rerun recordings; default <db stem>_recordings beside the database.",
 )
+@click.option(
+    "--force",
+    is_flag=True,
+    help="Write into a study made with another protocol, seed or platform version "
+    "(recorded in each session row).",
+)
 def synth(
     protocol: str,
     participants: int | None,
@@ -48,6 +56,7 @@ def synth(
     workers: int | None,
     db: Path,
     recordings: Path | None,
+    force: bool,
 ) -> None:
     """Run every participant's session of a protocol with synthetic participants.
 
@@ -70,6 +79,7 @@ def synth(
             workers=w,
             recordings=recordings,
             progress=lambda line: click.echo(line, err=True),
+            force=force,
         )
     click.echo(
         f"{summary.db}: {len(summary.run)} participants run, {len(summary.skipped)} skipped, "
