@@ -234,8 +234,13 @@ def _study(
     and the study's identity checked; the merger that takes them in."""
     merged, study_seed = _merged(engine)
     notes = identity.check(
-        db, identity.mismatches({"synthetic_seed": study_seed}, {"synthetic_seed": seed}),
-        force, flag="--force",
+        db,
+        identity.mismatches(
+            {"synthetic_study_seed": study_seed}, {"synthetic_study_seed": seed},
+            prefix="participant.parameters",
+        ),
+        force,
+        flag="--force",
     )  # fmt: skip
     todo = [i for i, code in enumerate(codes) if code not in merged]
     skipped = tuple(c for c in codes if c in merged)
