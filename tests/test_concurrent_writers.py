@@ -91,7 +91,7 @@ def test_two_synths_and_four_runs_on_one_study(tmp_path, seed):
         for code in RUN_CODES
     ]  # fmt: skip
     outs = [p.communicate(timeout=600) for p in procs]
-    for p, (out, err) in zip(procs, outs, strict=True):
+    for p, (_out, err) in zip(procs, outs, strict=True):
         assert p.returncode == 0, err
     assert sum("waiting" in err for _, err in outs[:2]) <= 1
     assert any("2 participant(s) already in" in err for _, err in outs[:2])

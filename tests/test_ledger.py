@@ -209,3 +209,21 @@ def test_concurrent_processes_never_share_a_slot(tmp_path, seed):
         assert balance([p.mode_order for p in people], scheme="williams")["balanced"]
     engine.dispose()
     assert not _ledger_problems(db)
+
+
+def test_a_code_reserved_by_a_running_synth_is_refused_then_taken_up(tmp_path, seed):
+    protocol = _protocol(tmp_path, "full_permutation", seed)
+    db = tmp_path / "s.db"
+    engine = open_database(db)
+    slots, _ = reserve_slots(engine, protocol, db, ["P01", "P02"], force=False)
+    assert slots == {"P01": 0, "P02": 1}
+    with locks.held(locks.synth_lock(db), wait=False):  # the synthetic study runs
+        with pytest.raises(ValueError, match="synthetic study running"):
+            _new(engine, protocol, db, "P02", seed)
+        assert _new(engine, protocol, db, "golf", seed).order_index == 2
+    person = _new(engine, protocol, db, "P02", seed)  # it was interrupted: P02 takes slot 1
+    assert person.order_index == 1
+    assert [(r.slot, r.code, r.status) for r in _slots(engine)] == [
+        (0, "P01", "reserved"), (1, "P02", "issued"), (2, "golf", "issued"),
+    ]  # fmt: skip
+    engine.dispose()

@@ -213,6 +213,26 @@ def _new_person(
     return person
 
 
+def _not_reserved_elsewhere(
+    s: Session, study: Study, code: str, db: str | Path, slot: int | None
+) -> None:
+    """Refuse a code whose slot a running synthetic study has reserved (it will merge that
+    participant); an interrupted study's reservation is taken up instead."""
+    if slot is not None or not database_url(db).startswith("sqlite:///"):
+        return
+    reserved = s.scalars(
+        select(OrderSlot).where(
+            OrderSlot.study_id == study.id, OrderSlot.code == code, OrderSlot.status == "reserved"
+        )
+    ).first()
+    lock = locks.synth_lock(database_file(db))
+    if reserved is not None and locks.is_held(lock):
+        raise ValueError(
+            f"{db}: field 'participant.code': {code} is a participant of the synthetic study "
+            f"running on this database (pid {locks.holder(lock)}); choose another code"
+        )
+
+
 def _slot_orders(protocol: Protocol, study: Study) -> SlotOrders:
     """Slot -> (row, mode order) under ``protocol``'s scheme (random draws seeded with the
     study seed)."""
@@ -290,6 +310,7 @@ def _open(
                     f"{len(sessions)} (last id {sessions[-1].id}); nothing was deleted"
                 )
             if person is None:
+                _not_reserved_elsewhere(s, study, code, db, slot)
                 person = _new_person(s, study, protocol, code, participant, seed, slot)
             row = SessionRow(
                 participant_id=person.id,
