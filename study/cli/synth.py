@@ -70,17 +70,20 @@ def synth(
     p = load_protocol(protocol)
     n = participants if participants is not None else p.study.participants
     w = workers if workers is not None else (os.cpu_count() or 1)
-    with flag_errors("participants", "seed", "workers", "db"):
-        summary = run_synthetic_study(
-            p,
-            db,
-            participants=n,
-            seed=seed,
-            workers=w,
-            recordings=recordings,
-            progress=lambda line: click.echo(line, err=True),
-            force=force,
-        )
+    try:
+        with flag_errors("participants", "seed", "workers", "db"):
+            summary = run_synthetic_study(
+                p,
+                db,
+                participants=n,
+                seed=seed,
+                workers=w,
+                recordings=recordings,
+                progress=lambda line: click.echo(line, err=True),
+                force=force,
+            )
+    except ValueError as error:  # the library names its parameter, the user types a flag
+        raise ValueError(str(error).replace("force=True", "--force")) from error
     click.echo(
         f"{summary.db}: {len(summary.run)} participants run, {len(summary.skipped)} skipped, "
         f"in {summary.wall_s:.1f} s"

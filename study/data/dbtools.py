@@ -193,9 +193,9 @@ def check(db: str | Path, *, verify_recordings: bool = True) -> CheckReport:
 
 
 def _check_people(s: Session, db: str | Path, protocol: Any, problems: list[str]) -> int:
-    """Sessions and trials left ``running`` without a live process holding the session
-    (interrupted: to be resumed), and completed sessions without the experience
-    questionnaire the protocol asks; returns the sessions running live."""
+    """Sessions left ``running`` (with or without a trial running) without a live process
+    holding the session (interrupted: to be resumed), and completed sessions without the
+    experience questionnaire the protocol asks; returns the sessions running live."""
     people = {p.id: p for p in s.scalars(select(Participant))}
     running_trials = {
         sid for (sid,) in s.execute(select(Trial.session_id).where(Trial.status == "running"))
@@ -207,14 +207,14 @@ def _check_people(s: Session, db: str | Path, protocol: Any, problems: list[str]
         person = people.get(row.participant_id)
         if person is None:
             continue  # an orphan, reported by _orphans
-        if row.status == "running" or row.id in running_trials:
-            if row.status == "running" and _live(db, person.code):
+        if row.status == "running":  # a trial running elsewhere: see check()
+            if _live(db, person.code):
                 live += 1
                 continue
             problems.append(
-                f"participant {person.code}: session {row.id} is {row.status} with "
-                + ("a trial still running" if row.id in running_trials else "no end")
-                + " and no process holds it: interrupted; resume with `asa run --protocol "
+                f"participant {person.code}: session {row.id} is still running"
+                + (" (a trial too)" if row.id in running_trials else "")
+                + " but no process holds it: interrupted; resume with `asa run --protocol "
                 f"<protocol> --participant {person.code} --db {db} --resume`"
             )
         elif row.status == "completed" and _experience(protocol) and person.id not in answered:

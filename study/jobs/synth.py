@@ -240,7 +240,6 @@ def _study(
             prefix="participant.parameters",
         ),
         force,
-        flag="--force",
     )  # fmt: skip
     todo = [i for i, code in enumerate(codes) if code not in merged]
     skipped = tuple(c for c in codes if c in merged)
