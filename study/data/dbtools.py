@@ -139,10 +139,7 @@ def check(db: str | Path, *, verify_recordings: bool = True) -> CheckReport:
     try:
         present = set(inspect(engine).get_table_names())
         with Session(engine) as s:
-            for table in Base.metadata.sorted_tables:
-                if table.name in present:  # order_slot is missing before issue 20
-                    n = s.scalar(select(func.count()).select_from(table))
-                    counts[table.name] = int(n or 0)
+            counts.update(_table_counts(s, present))
             study = get_study(s)
             if study is None:
                 problems.append("study: no study row (an empty database)")
@@ -152,11 +149,7 @@ def check(db: str | Path, *, verify_recordings: bool = True) -> CheckReport:
             _orphans(s, problems)
             sessions = {r.id: r for r in s.scalars(select(SessionRow))}
             stats = _sample_stats(s)
-            kinds: dict[int, set[str]] = {}
-            for tid, kind in s.execute(
-                select(Event.trial_id, Event.kind).where(Event.trial_id.is_not(None)).distinct()
-            ):
-                kinds.setdefault(tid, set()).add(kind)
+            kinds = _event_kinds(s)
             main_trials: dict[int, list[Trial]] = {}
             checked = 0
             for trial in s.scalars(select(Trial).order_by(Trial.id)):
@@ -190,6 +183,26 @@ def check(db: str | Path, *, verify_recordings: bool = True) -> CheckReport:
             if path in failures:
                 problems.append(f"{where}: {failures[path]}")
     return CheckReport(str(db), tuple(problems), counts)
+
+
+def _table_counts(s: Session, present: set[str]) -> dict[str, int]:
+    """Rows per table of the schema that the database has (``order_slot`` is missing in
+    databases made before issue 20)."""
+    return {
+        table.name: int(s.scalar(select(func.count()).select_from(table)) or 0)
+        for table in Base.metadata.sorted_tables
+        if table.name in present
+    }
+
+
+def _event_kinds(s: Session) -> dict[int, set[str]]:
+    """Trial id -> the kinds of its events."""
+    kinds: dict[int, set[str]] = {}
+    for tid, kind in s.execute(
+        select(Event.trial_id, Event.kind).where(Event.trial_id.is_not(None)).distinct()
+    ):
+        kinds.setdefault(tid, set()).add(kind)
+    return kinds
 
 
 def _check_people(s: Session, db: str | Path, protocol: Any, problems: list[str]) -> int:
