@@ -176,6 +176,8 @@ def test_db_check_finds_interrupted_sessions_missing_questionnaires_and_stale_sl
     assert "interrupted" in line and "--participant golf" in line and "--resume" in line
 
 
+@pytest.mark.slow  # ~20 s on a contended machine; the CI test of concurrency is
+# test_concurrent_writers.py::test_two_synths_and_four_runs_on_one_study
 def test_concurrent_processes_never_share_a_slot(tmp_path, seed):
     path = tmp_path / "williams.toml"
     path.write_text(PROTOCOL.format(scheme="williams", seed=seed % 1000))
