@@ -136,14 +136,15 @@ def session_run(tmp_path_factory):
 def test_whole_session_runs_every_phase(session_run):
     protocol, db, summary, who, lines = session_run
     assert summary.status == "completed"
-    assert summary.mode_order == ("reactive_bn", "manual")  # P02: permutation 1
+    # the study's first participant takes slot 0 whatever its code (issue 20): permutation 0
+    assert summary.mode_order == ("manual", "reactive_bn")
     engine = open_database(db, create=False)
     with Session(engine) as s:
         trials = s.scalars(select(Trial).order_by(Trial.id)).all()
         phases = [t.phase for t in trials]
         assert phases[:2] == ["training", "training"]
         assert "baseline" in phases
-        assert [t.mode for t in trials if t.phase == "main"] == ["reactive_bn", "manual"]
+        assert [t.mode for t in trials if t.phase == "main"] == ["manual", "reactive_bn"]
         assert {t.status for t in trials} == {"completed"}
         practice = [t for t in trials if t.phase == "practice"]
         assert {t.ordinal for t in practice} == {0, 1}
@@ -180,10 +181,10 @@ def test_whole_session_runs_every_phase(session_run):
         ]
         assert done == ["briefing", "experience", "debrief"]
         person = s.scalars(select(Participant)).one()
-        assert person.kind == "scripted" and person.order_index == 1
+        assert person.kind == "scripted" and person.order_index == 0
         assert s.scalars(select(SessionRow)).one().status == "completed"
     engine.dispose()
-    assert any("main #0 mode reactive_bn" in line for line in lines)
+    assert any("main #0 mode manual" in line for line in lines)
 
 
 def test_mode_name_is_never_on_the_screen(session_run):
@@ -239,6 +240,7 @@ def test_cli_db_check_and_export(session_run, tmp_path):
         "event",
         "question",
         "response",
+        "order_slot",
     }
     with open(tmp_path / "csv" / "trial.csv", encoding="utf-8") as f:
         rows = list(csv.DictReader(f))

@@ -26,7 +26,6 @@ from sqlalchemy.orm import Session
 
 from study.ui.headless import headless_trial
 
-
 MODES = ("manual", "reactive_bn", "contextual_task")
 
 

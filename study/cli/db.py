@@ -24,7 +24,10 @@ def check_command(path: str, as_json: bool, no_verify: bool) -> None:
     """Check a study database: every completed trial has its samples (~20 per simulated
     second), its events, its outcome, its recording (verified with rerun) and, for main
     trials, its questionnaire; no orphan rows; no trial left running outside a running
-    session.
+    session; no session or trial running without a live `asa run` holding it (else it was
+    interrupted: resume it with `asa run ... --resume`); completed sessions have the
+    questionnaires their protocol requires; every order slot issued once, to the
+    participant whose order it gives.
 
     Exit status 0 when clean, 1 with a report of the problems, 2 on bad input.
     """

@@ -2,7 +2,9 @@
 run_synthetic_study`), in worker processes; the database is the same whatever the number
 of workers. One line per finished participant (with the live count) goes to stderr, the
 summary to stdout. Started again after an interruption, it skips the participants already
-in the database and runs the others from scratch."""
+in the database and runs the others from scratch. One synthetic study writes a database at
+a time: a second one waits for the first. A study made with another protocol, seed or
+platform version is refused unless ``--force``."""
 
 from __future__ import annotations
 
@@ -36,6 +38,12 @@ from study.cli import db_option, flag_errors
     default=None,
     help="Folder for the rerun recordings; default <db stem>_recordings beside the database.",
 )
+@click.option(
+    "--force",
+    is_flag=True,
+    help="Write into a study made with another protocol, seed or platform version "
+    "(recorded in each session row).",
+)
 def synth(
     protocol: str,
     participants: int | None,
@@ -43,6 +51,7 @@ def synth(
     workers: int | None,
     db: Path,
     recordings: Path | None,
+    force: bool,
 ) -> None:
     """Run every participant's session of a protocol with synthetic participants.
 
@@ -56,16 +65,20 @@ def synth(
     p = load_protocol(protocol)
     n = participants if participants is not None else p.study.participants
     w = workers if workers is not None else (os.cpu_count() or 1)
-    with flag_errors("participants", "seed", "workers", "db"):
-        summary = run_synthetic_study(
-            p,
-            db,
-            participants=n,
-            seed=seed,
-            workers=w,
-            recordings=recordings,
-            progress=lambda line: click.echo(line, err=True),
-        )
+    try:
+        with flag_errors("participants", "seed", "workers", "db"):
+            summary = run_synthetic_study(
+                p,
+                db,
+                participants=n,
+                seed=seed,
+                workers=w,
+                recordings=recordings,
+                progress=lambda line: click.echo(line, err=True),
+                force=force,
+            )
+    except ValueError as error:  # the library names its parameter, the user types a flag
+        raise ValueError(str(error).replace("force=True", "--force")) from error
     click.echo(
         f"{summary.db}: {len(summary.run)} participants run, {len(summary.skipped)} skipped, "
         f"in {summary.wall_s:.1f} s"

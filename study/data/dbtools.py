@@ -7,7 +7,11 @@ contiguous, as many as its duration asks, within two ticks), its start and end e
 its outcome fields, its NASA-TLX answers where the protocol asks for them, and its
 recording, which passes ``rerun rrd verify`` (:func:`study.data.rrd.verify_many`); a
 timed-out trial's task is not completed; no orphan rows; no trial left ``running``
-outside a ``running`` session. :func:`export` writes one CSV per table:
+outside a ``running`` session; no session or trial ``running`` without a live process
+holding it (:mod:`study.data.locks`; else it was interrupted and is to be resumed); the
+questionnaires the stored protocol requires of a completed session; the order ledger
+consistent with the participants, every slot issued once (issue 20; :func:`_check_people`
+and :func:`_check_ledger`). :func:`export` writes one CSV per table:
 columns in the table's order, JSON columns as JSON text, times in ISO 8601, NULL empty.
 """
 
@@ -22,15 +26,17 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from sqlalchemy import JSON, func, select
+from sqlalchemy import JSON, func, inspect, select
 from sqlalchemy.orm import Session
 
 from questionnaires import nasa_tlx
+from study.data import locks
 from study.data.rrd import verify_many
 from study.data.storage import (
     TRIAL_FINISHED,
     Base,
     Event,
+    OrderSlot,
     Participant,
     Question,
     Response,
@@ -76,13 +82,19 @@ class CheckReport:
         return "\n".join(lines)
 
 
-def _after_trial(protocol_text: str) -> tuple[bool, str] | None:
-    """(questionnaire after main trials?, weights) from a stored protocol, None if unreadable."""
+def _stored_protocol(protocol_text: str) -> Any:
+    """The study's protocol read back from its stored text, None if it no longer parses."""
     from study.engine.protocol import parse_protocol
 
     try:
-        protocol = parse_protocol(protocol_text, "<stored protocol>")
+        return parse_protocol(protocol_text, "<stored protocol>")
     except ValueError:
+        return None
+
+
+def _after_trial(protocol: Any) -> tuple[bool, str] | None:
+    """(questionnaire after main trials?, weights) of a stored protocol, None if unreadable."""
+    if protocol is None:
         return None
     after = protocol.main.after_trial
     return (after is not None, after.weights if after is not None else "raw")
@@ -126,22 +138,19 @@ def check(db: str | Path, *, verify_recordings: bool = True) -> CheckReport:
     counts: dict[str, int] = {}
     folder = database_file(db).parent
     try:
+        present = set(inspect(engine).get_table_names())
         with Session(engine) as s:
-            for table in Base.metadata.sorted_tables:
-                counts[table.name] = int(s.scalar(select(func.count()).select_from(table)) or 0)
+            counts.update(_table_counts(s, present))
             study = get_study(s)
             if study is None:
                 problems.append("study: no study row (an empty database)")
                 return CheckReport(str(db), tuple(problems), counts)
-            after = _after_trial(study.protocol_text)
+            protocol = _stored_protocol(study.protocol_text)
+            after = _after_trial(protocol)
             _orphans(s, problems)
             sessions = {r.id: r for r in s.scalars(select(SessionRow))}
             stats = _sample_stats(s)
-            kinds: dict[int, set[str]] = {}
-            for tid, kind in s.execute(
-                select(Event.trial_id, Event.kind).where(Event.trial_id.is_not(None)).distinct()
-            ):
-                kinds.setdefault(tid, set()).add(kind)
+            kinds = _event_kinds(s)
             main_trials: dict[int, list[Trial]] = {}
             checked = 0
             for trial in s.scalars(select(Trial).order_by(Trial.id)):
@@ -163,6 +172,9 @@ def check(db: str | Path, *, verify_recordings: bool = True) -> CheckReport:
                 _check_recording(trial, folder, verify_recordings, problems, where, to_verify)
             if after is not None and after[0]:
                 _check_questionnaires(s, main_trials, sessions, after[1], problems)
+            counts["live_sessions"] = _check_people(s, db, protocol, problems)
+            if "order_slot" in present:
+                _check_ledger(s, db, study, protocol, problems)
             counts["trials_checked"] = checked
     finally:
         engine.dispose()
@@ -172,6 +184,116 @@ def check(db: str | Path, *, verify_recordings: bool = True) -> CheckReport:
             if path in failures:
                 problems.append(f"{where}: {failures[path]}")
     return CheckReport(str(db), tuple(problems), counts)
+
+
+def _table_counts(s: Session, present: set[str]) -> dict[str, int]:
+    """Rows per table of the schema that the database has (``order_slot`` is missing in
+    databases made before issue 20)."""
+    return {
+        table.name: int(s.scalar(select(func.count()).select_from(table)) or 0)
+        for table in Base.metadata.sorted_tables
+        if table.name in present
+    }
+
+
+def _event_kinds(s: Session) -> dict[int, set[str]]:
+    """Trial id -> the kinds of its events."""
+    kinds: dict[int, set[str]] = {}
+    for tid, kind in s.execute(
+        select(Event.trial_id, Event.kind).where(Event.trial_id.is_not(None)).distinct()
+    ):
+        kinds.setdefault(tid, set()).add(kind)
+    return kinds
+
+
+def _check_people(s: Session, db: str | Path, protocol: Any, problems: list[str]) -> int:
+    """Sessions left ``running`` (with or without a trial running) without a live process
+    holding the session (interrupted: to be resumed), and completed sessions without the
+    experience questionnaire the protocol asks; returns the sessions running live."""
+    people = {p.id: p for p in s.scalars(select(Participant))}
+    running_trials = {
+        sid for (sid,) in s.execute(select(Trial.session_id).where(Trial.status == "running"))
+    }
+    answered = set(s.scalars(select(Response.participant_id).where(Response.trial_id.is_(None))
+                             .where(Response.instrument == _experience(protocol))))  # fmt: skip
+    live = 0
+    for row in s.scalars(select(SessionRow).order_by(SessionRow.id)):
+        person = people.get(row.participant_id)
+        if person is None:
+            continue  # an orphan, reported by _orphans
+        if row.status == "running":  # a trial running elsewhere: see check()
+            if _live(db, person.code):
+                live += 1
+                continue
+            problems.append(
+                f"participant {person.code}: session {row.id} is still running"
+                + (" (a trial too)" if row.id in running_trials else "")
+                + " but no process holds it: interrupted; resume with `asa run --protocol "
+                f"<protocol> --participant {person.code} --db {db} --resume`"
+            )
+        elif row.status == "completed" and _experience(protocol) and person.id not in answered:
+            problems.append(
+                f"participant {person.code}: session {row.id} completed without the "
+                f"'{_experience(protocol)}' questionnaire its protocol requires"
+            )
+    return live
+
+
+def _experience(protocol: Any) -> str:
+    """The instrument of the protocol's experience phase, "" without one."""
+    phase = protocol.phase("experience") if protocol is not None else None
+    return phase.instrument if phase is not None else ""
+
+
+def _live(db: str | Path, code: str) -> bool:
+    """True when a process holds participant ``code``'s session lock (SQLite only)."""
+    if not database_url(db).startswith("sqlite:///"):
+        return False
+    return locks.is_held(locks.session_lock(database_file(db), code))
+
+
+def _check_ledger(
+    s: Session, db: str | Path, study: Any, protocol: Any, problems: list[str]
+) -> None:
+    """Every participant holds one order slot (or gave it up by exclusion), each slot is
+    held by the participant of its code, and the slot gives the participant's stored row
+    of the scheme; a slot reserved by a synthetic study that is no longer running."""
+    from study.engine.counterbalance import SlotOrders
+
+    rows = list(s.scalars(select(OrderSlot).order_by(OrderSlot.slot)))
+    people = {p.id: p for p in s.scalars(select(Participant))}
+    if not rows:
+        return  # a database made before the ledger: filled in on its next write
+    orders = SlotOrders(protocol.modes, protocol.counterbalancing, study.seed) if protocol else None
+    holders: dict[int, int] = {}
+    released = {h.get("participant_id") for r in rows for h in r.released}
+    synth_live = database_url(db).startswith("sqlite:///") and locks.is_held(
+        locks.synth_lock(database_file(db))
+    )
+    for r in rows:
+        where = f"order slot {r.slot}"
+        if r.status == "reserved":
+            if r.participant_id is None and not synth_live:
+                problems.append(
+                    f"{where}: reserved for {r.code} by a synthetic study that did not "
+                    "finish; run the same `asa synth` again"
+                )
+            continue
+        person = people.get(r.participant_id) if r.participant_id is not None else None
+        if person is None or person.code != r.code:
+            problems.append(f"{where}: held by {r.code}, who is not that participant")
+            continue
+        holders[person.id] = holders.get(person.id, 0) + 1
+        if orders is not None and orders.row(r.slot) != person.order_index:
+            problems.append(
+                f"{where}: gives row {orders.row(r.slot)}, but {r.code} has row "
+                f"{person.order_index}"
+            )
+    for pid, person in people.items():
+        if holders.get(pid, 0) > 1:
+            problems.append(f"participant {person.code}: holds {holders[pid]} order slots")
+        elif pid not in holders and pid not in released:
+            problems.append(f"participant {person.code}: holds no order slot")
 
 
 def _sample_stats(s: Session) -> dict[int, tuple[int, int, int, float]]:
@@ -412,8 +534,11 @@ def export(db: str | Path, out: str | Path, *, force: bool = False) -> dict[str,
     folder.mkdir(parents=True, exist_ok=True)
     written: dict[str, int] = {}
     try:
+        present = set(inspect(engine).get_table_names())
         with engine.connect() as conn:
             for table in Base.metadata.sorted_tables:
+                if table.name not in present:
+                    continue  # order_slot in a database made before issue 20
                 columns = list(table.columns)
                 json_cols = [isinstance(c.type, JSON) for c in columns]
                 n = 0

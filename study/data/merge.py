@@ -1,5 +1,10 @@
 """Merging a one-participant study database into a study database, with fresh row ids
-(the synthetic study's workers write one temporary database each; thesis section 7.6)."""
+(the synthetic study's workers write one temporary database each; thesis section 7.6).
+
+Only a finished participant is taken (its sessions ended, no trial running), under the
+study database's write lock, into the order slot reserved for it in the study's ledger
+(:func:`study.engine.session.reserve_slots`); the study's identity (protocol, seed,
+platform version) must match unless the merge is forced with a note (issue 20)."""
 
 from __future__ import annotations
 
@@ -10,7 +15,10 @@ from typing import Any
 
 from sqlalchemy import select
 from sqlalchemy.engine import Connection, Engine
+from sqlalchemy.orm import Session
 
+from study.data import identity
+from study.data.ledger import lock_study
 from study.data.storage import Base, open_database
 
 _CHUNK = 5000  # rows per executemany when copying samples
@@ -78,6 +86,7 @@ class _SourceRows:
     events: list[dict[str, Any]]
     questions: list[dict[str, Any]]
     responses: list[dict[str, Any]]
+    slots: list[dict[str, Any]]
 
 
 def _read_source(src: Path) -> _SourceRows:
@@ -93,22 +102,57 @@ def _read_source(src: Path) -> _SourceRows:
                 events=table_rows(sc, "event"),
                 questions=table_rows(sc, "question"),
                 responses=table_rows(sc, "response"),
+                slots=table_rows(sc, "order_slot"),
             )
     finally:
         source.dispose()
 
 
-def _study_id(conn: Connection, study: dict[str, Any]) -> int:
-    """The id of the study row in the destination, copied from ``study`` if there is none."""
+_IDENTITY = ("protocol_sha256", "seed", "platform_version")
+
+
+def _study_id(conn: Connection, study: dict[str, Any], note: str) -> int:
+    """The id of the study row in the destination, copied from ``study`` if there is none;
+    another identity is refused unless ``note`` (a forced run's) is given."""
     have = table_rows(conn, "study")
     if not have:
         return _insert(conn, "study", study)
-    if have[0]["protocol_sha256"] != study["protocol_sha256"]:
+    found = identity.mismatches(
+        {k: have[0][k] for k in _IDENTITY}, {k: study[k] for k in _IDENTITY}
+    )
+    if found and not note:
         raise ValueError(
-            f"field 'study.protocol_sha256': the database holds study "
-            f"{have[0]['name']!r} of another protocol; use a new database file"
+            f"study {have[0]['name']!r}: "
+            + "; ".join(m.words() for m in found)
+            + "; use a new database file"
         )
     return int(have[0]["id"])
+
+
+def _finished(src: Path, rows: _SourceRows) -> None:
+    """Refuse a participant whose session or trials are still running (a scratch copy
+    another process is writing, or one cut off by a crash)."""
+    running = [s["id"] for s in rows.sessions if s["status"] == "running"]
+    running += [t["id"] for t in rows.trials if t["status"] == "running"]
+    if running or not rows.sessions:
+        raise ValueError(
+            f"{src}: participant {rows.people[0]['code']} is not finished (a session or "
+            "trial is still running); only finished participants are merged"
+        )
+
+
+def _take_slot(conn: Connection, study_id: int, code: str, pid: int, slots: list[Any]) -> None:
+    """Give participant ``pid`` the slot reserved for ``code`` in the destination's ledger
+    (the slot it ran with, per the source's ledger)."""
+    t = Base.metadata.tables["order_slot"]
+    row = conn.execute(select(t).where(t.c.study_id == study_id, t.c.code == code)).first()
+    ran = next((r["slot"] for r in slots if r["code"] == code), None)
+    if row is None or row.status != "reserved" or (ran is not None and ran != row.slot):
+        raise ValueError(
+            f"field 'order_slot': participant {code} ran with order slot {ran}, which is not "
+            "reserved for it in the study database; run the participant again"
+        )
+    conn.execute(t.update().where(t.c.id == row.id).values(participant_id=pid, status="issued"))
 
 
 def _insert_trials(
@@ -138,13 +182,18 @@ def _insert_trials(
     return trial_ids
 
 
-def merge_participant(src: Path, dst: Engine, *, src_folder: Path, dst_folder: Path) -> str:
+def merge_participant(
+    src: Path, dst: Engine, *, src_folder: Path, dst_folder: Path, note: str = ""
+) -> str:
     """Copy the one participant of the database ``src`` into ``dst`` in one transaction.
 
     Row ids are assigned afresh in ``dst`` and every reference is remapped; the study row
     is copied if ``dst`` has none; ``trial.recording_path`` is rewritten from relative to
     ``src_folder`` to relative to ``dst_folder``. JSON details of events are copied as they
-    are (a fresh session has no event whose detail holds row ids).
+    are (a fresh session has no event whose detail holds row ids). The participant takes
+    the order slot reserved for its code in ``dst``'s ledger. A ``note`` (a forced run's:
+    the study identity it overrode) allows another identity and is appended to each
+    copied session's ``note``, which is marked ``forced``.
 
     Returns
     -------
@@ -154,23 +203,28 @@ def merge_participant(src: Path, dst: Engine, *, src_folder: Path, dst_folder: P
     Raises
     ------
     ValueError
-        ``dst`` holds a study of another protocol, or ``src`` does not hold exactly one
-        participant, or the participant is already in ``dst``.
+        ``dst`` holds a study of another protocol, seed or platform version (without
+        ``note``), or ``src`` does not hold exactly one finished participant, or the
+        participant is already in ``dst``, or no order slot is reserved for it.
     """
     rows = _read_source(src)
     if len(rows.study) != 1 or len(rows.people) != 1:
         raise ValueError(f"{src}: expected one study and one participant to merge")
+    _finished(src, rows)
     person = rows.people[0]
-    with dst.begin() as conn:
-        study_id = _study_id(conn, rows.study[0])
+    with Session(dst) as s, s.begin():
+        lock_study(s)
+        conn = s.connection()
+        study_id = _study_id(conn, rows.study[0], note)
         pt = Base.metadata.tables["participant"]
         if conn.execute(
             select(pt.c.id).where(pt.c.study_id == study_id, pt.c.code == person["code"])
         ).first():
             raise ValueError(f"participant {person['code']} is already in the database")
         pid = _insert(conn, "participant", {**person, "study_id": study_id})
+        _take_slot(conn, study_id, person["code"], pid, rows.slots)
         session_ids = {
-            s["id"]: _insert(conn, "session", {**s, "participant_id": pid}) for s in rows.sessions
+            r["id"]: _insert(conn, "session", _session(r, pid, note)) for r in rows.sessions
         }
         trial_ids = _insert_trials(conn, rows.trials, pid, session_ids, src_folder, dst_folder)
 
@@ -192,16 +246,9 @@ def merge_participant(src: Path, dst: Engine, *, src_folder: Path, dst_folder: P
     return str(person["code"])
 
 
-def merged_codes(db: Path) -> tuple[set[str], str | None]:
-    """The participant codes in the database ``db`` and its protocol's SHA-256 (empty and
-    ``None`` when there is no file or no study yet)."""
-    if not db.exists():
-        return set(), None
-    engine = open_database(db, create=False)
-    try:
-        with engine.connect() as conn:
-            names = {r["code"] for r in table_rows(conn, "participant")}
-            study = table_rows(conn, "study")
-    finally:
-        engine.dispose()
-    return names, (study[0]["protocol_sha256"] if study else None)
+def _session(row: dict[str, Any], pid: int, note: str) -> dict[str, Any]:
+    """A source session row for participant ``pid``, a forced run's ``note`` recorded."""
+    if not note:
+        return {**row, "participant_id": pid}
+    text = "; ".join(filter(None, [row["note"], note]))
+    return {**row, "participant_id": pid, "forced": True, "note": text}

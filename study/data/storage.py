@@ -6,8 +6,9 @@ keys on) by default; any SQLAlchemy URL for a server database. Tables (DESIGN.md
 seed), ``participant`` (pseudonymous code, synthetic parameters, mode order), ``session``
 (one run for a participant; a forced second session is recorded), ``trial`` (phase, mode,
 status, times, outcome), ``sample`` (one per control tick), ``event`` (with a JSON
-``detail``), ``question`` (one per secondary-task question) and ``response``
-(questionnaire answers, NASA-TLX pairwise choices as items ``pair:<a>|<b>``).
+``detail``), ``question`` (one per secondary-task question), ``response``
+(questionnaire answers, NASA-TLX pairwise choices as items ``pair:<a>|<b>``) and
+``order_slot`` (the counterbalancing ledger: every order slot issued, :mod:`study.data.ledger`).
 """
 
 from __future__ import annotations
@@ -57,6 +58,10 @@ TRIAL_STATUSES = ("running", "completed", "timed_out", "aborted")
 # "completed" with completed_task false (docs/decisions.md)
 TRIAL_FINISHED = ("completed", "timed_out")
 PARTICIPANT_KINDS = ("human", "synthetic", "scripted")
+# an order slot is "reserved" for a code by a synthetic study until its participant is
+# merged, then "issued"; an issued slot whose holder was excluded is reissued (the earlier
+# holders are kept in ``OrderSlot.released``)
+SLOT_STATUSES = ("reserved", "issued")
 
 
 def utc_now() -> dt.datetime:
@@ -217,6 +222,24 @@ class Response(Base):
     item: Mapped[str] = mapped_column(String(64))
     value: Mapped[float | None] = mapped_column(Float)
     text: Mapped[str] = mapped_column(Text, default="")
+    created_at: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True), default=utc_now)
+
+
+class OrderSlot(Base):
+    """One slot of the counterbalancing ledger: slot ``k`` (from 0) gives row ``k mod
+    cycle`` of a deterministic scheme, the ``k``-th draw of the random scheme. One row per
+    slot and study; ``participant_id`` is its current holder (None while ``reserved``)."""
+
+    __tablename__ = "order_slot"
+    __table_args__ = (UniqueConstraint("study_id", "slot"), UniqueConstraint("study_id", "code"))
+    id: Mapped[int] = mapped_column(primary_key=True)
+    study_id: Mapped[int] = mapped_column(ForeignKey("study.id"))
+    slot: Mapped[int] = mapped_column(Integer)  # from 0
+    code: Mapped[str] = mapped_column(String(64))  # the current holder's code
+    participant_id: Mapped[int | None] = mapped_column(ForeignKey("participant.id"))
+    status: Mapped[str] = mapped_column(String(16), default="issued")  # SLOT_STATUSES
+    # earlier holders released by exclusion: [{"code", "participant_id", "released_at"}]
+    released: Mapped[list[Any]] = mapped_column(default=list)
     created_at: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True), default=utc_now)
 
 

@@ -144,6 +144,35 @@ def assign_indexed(
     return [(i % len(rows), rows[i % len(rows)]) for i in range(n)]
 
 
+class SlotOrders:
+    """The counterbalancing row and mode order of each slot of a study's order ledger
+    (:mod:`study.data.ledger`): slot ``k`` (from 0) is participant ``k`` of
+    :func:`assign_indexed`, i.e. row ``k mod cycle`` of a deterministic scheme and the
+    ``k``-th draw of ``random`` from a generator seeded with ``seed`` (drawn in sequence,
+    kept, so asking for slot ``k`` costs ``k`` draws once)."""
+
+    def __init__(self, modes: Sequence[str], scheme: str, seed: int) -> None:
+        self.modes = _check_modes(modes)
+        _check_scheme(scheme)
+        self.scheme = scheme
+        self.rows = scheme_rows(self.modes, scheme) if scheme != "random" else None
+        self._rng = np.random.default_rng(seed)
+        self._drawn: list[tuple[int, tuple[str, ...]]] = []
+
+    def __call__(self, slot: int) -> tuple[int, tuple[str, ...]]:
+        """(row index, mode order) of ``slot`` (an integer >= 0)."""
+        if self.rows is not None:
+            return slot % len(self.rows), self.rows[slot % len(self.rows)]
+        while len(self._drawn) <= slot:
+            perm = [int(j) for j in self._rng.permutation(len(self.modes))]
+            self._drawn.append((_permutation_index(perm), tuple(self.modes[j] for j in perm)))
+        return self._drawn[slot]
+
+    def row(self, slot: int) -> int:
+        """The row index (``participant.order_index``) of ``slot``."""
+        return self(slot)[0]
+
+
 def assign(
     modes: Sequence[str],
     n: int,

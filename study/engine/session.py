@@ -4,29 +4,33 @@ active mode is never shown to the participant."""
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import re
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
 from sqlalchemy import select
 from sqlalchemy.engine import Engine
 from sqlalchemy.orm import Session
 
 from study import __version__
+from study.data import identity, ledger, locks
 from study.data.storage import (
     Event,
+    OrderSlot,
     Participant,
     SessionRow,
     Study,
     Trial,
+    database_file,
+    database_url,
     get_study,
     open_database,
     utc_now,
 )
-from study.engine.counterbalance import assign_indexed, cycle_length
+from study.engine.counterbalance import SlotOrders, cycle_length
 from study.engine.protocol import Protocol
 from study.engine.resume import resume_plan, session_state
 from study.engine.runner import SessionRunner, TrialSummary, derive_seed
@@ -39,6 +43,7 @@ __all__ = [
     "check_code",
     "default_seed",
     "derive_seed",
+    "reserve_slots",
     "run_session",
 ]
 
@@ -89,22 +94,14 @@ def default_seed(study_seed: int, code: str) -> int:
     return int.from_bytes(digest[:4], "little") >> 1
 
 
-def _order_index(s: Session, study: Study, code: str) -> int:
-    m = re.search(r"(\d+)$", code)
-    if m and int(m[1]) >= 1:
-        return int(m[1]) - 1
-    used = set(s.scalars(select(Participant.order_index).where(Participant.study_id == study.id)))
-    index = 0
-    while index in used:
-        index += 1
-    return index
-
-
 # ---------------------------------------------------------------------- opening
 
 
 def _study(s: Session, protocol: Protocol, db: str | Path, force: bool, notes: list[str]) -> Study:
-    """The database's study row (made on first use); another protocol needs ``force``."""
+    """The database's study row (made on first use), under the database's write lock.
+    Another protocol, study seed or platform version is refused unless ``force`` (then
+    noted in ``notes``)."""
+    ledger.lock_study(s)
     study = get_study(s)
     if study is None:
         study = Study(
@@ -116,15 +113,25 @@ def _study(s: Session, protocol: Protocol, db: str | Path, force: bool, notes: l
         )
         s.add(study)
         s.flush()
-    elif study.protocol_sha256 != protocol.sha256:
-        message = (
+        return study
+    stored = {
+        "protocol_sha256": study.protocol_sha256,
+        "seed": study.seed,
+        "platform_version": study.platform_version,
+    }
+    wanted = {
+        "protocol_sha256": protocol.sha256,
+        "seed": protocol.study.seed,
+        "platform_version": __version__,
+    }
+    found = identity.mismatches(stored, wanted)
+    if found and found[0].field == "study.protocol_sha256" and not force:
+        raise ValueError(
             f"{db}: field 'study.protocol_sha256': the database was made with protocol "
             f"'{study.name}' (SHA-256 {study.protocol_sha256[:12]}...), not with "
-            f"{protocol.source} ({protocol.sha256[:12]}...)"
+            f"{protocol.source} ({protocol.sha256[:12]}...); use force=True to run it anyway"
         )
-        if not force:
-            raise ValueError(message + "; use force=True to run it anyway")
-        notes.append(f"forced: protocol {protocol.sha256[:12]} differs from the study's")
+    notes.extend(identity.check(db, found, force))
     return study
 
 
@@ -180,35 +187,84 @@ def _new_person(
     code: str,
     participant: SessionParticipant,
     seed: int | None,
+    slot: int | None,
 ) -> Participant:
-    """The participant row: order index from the code, mode order from counterbalancing."""
-    index = _order_index(s, study, code)
-    cycle = cycle_length(len(protocol.modes), protocol.counterbalancing)
-    if cycle is None and index >= MAX_RANDOM_INDEX:
-        raise ValueError(
-            f"participant code: {code!r} asks for participant number "
-            f"{index + 1}; the random scheme draws orders in sequence up to "
-            f"{MAX_RANDOM_INDEX}, use a smaller number"
-        )
-    # deterministic schemes repeat with their cycle: only compute one cycle
-    rows = assign_indexed(
-        protocol.modes,
-        (index % cycle if cycle else index) + 1,
-        protocol.counterbalancing,
-        rng=np.random.default_rng(study.seed),
-    )
+    """The participant row with its order slot from the ledger (``slot`` when the caller
+    reserved one) and the mode order of that slot."""
     person = Participant(
         study_id=study.id,
         code=code,
         kind=participant.kind,
         parameters=dict(participant.parameters),
-        order_index=rows[-1][0],
-        mode_order=list(rows[-1][1]),
+        order_index=0,
+        mode_order=[],
         seed=int(seed) if seed is not None else default_seed(study.seed, code),
     )
     s.add(person)
     s.flush()
+    orders = _slot_orders(protocol, study)
+    if slot is None:
+        slot = ledger.allocate(s, study.id, code, person.id, orders.row)
+    else:
+        s.add(OrderSlot(study_id=study.id, slot=slot, code=code, participant_id=person.id))
+    index, order = orders(_check_slot(slot, protocol, code))
+    person.order_index, person.mode_order = index, list(order)
+    s.flush()
     return person
+
+
+def _not_reserved_elsewhere(
+    s: Session, study: Study, code: str, db: str | Path, slot: int | None
+) -> None:
+    """Refuse a code whose slot a running synthetic study has reserved (it will merge that
+    participant); an interrupted study's reservation is taken up instead."""
+    if slot is not None or not database_url(db).startswith("sqlite:///"):
+        return
+    reserved = s.scalars(
+        select(OrderSlot).where(
+            OrderSlot.study_id == study.id, OrderSlot.code == code, OrderSlot.status == "reserved"
+        )
+    ).first()
+    lock = locks.synth_lock(database_file(db))
+    if reserved is not None and locks.is_held(lock):
+        raise ValueError(
+            f"{db}: field 'participant.code': {code} is a participant of the synthetic study "
+            f"running on this database (pid {locks.holder(lock)}); choose another code"
+        )
+
+
+def _slot_orders(protocol: Protocol, study: Study) -> SlotOrders:
+    """Slot -> (row, mode order) under ``protocol``'s scheme (random draws seeded with the
+    study seed)."""
+    return SlotOrders(protocol.modes, protocol.counterbalancing, study.seed)
+
+
+def _check_slot(slot: int, protocol: Protocol, code: str) -> int:
+    cycle = cycle_length(len(protocol.modes), protocol.counterbalancing)
+    if cycle is None and slot >= MAX_RANDOM_INDEX:
+        raise ValueError(
+            f"participant code: {code!r} would take order slot {slot + 1}; the random scheme "
+            f"draws orders in sequence up to {MAX_RANDOM_INDEX}"
+        )
+    return slot
+
+
+def reserve_slots(
+    engine: Engine, protocol: Protocol, db: str | Path, codes: Sequence[str], *, force: bool
+) -> tuple[dict[str, int], list[str]]:
+    """Order slots reserved in the study database for participants ``codes`` that run
+    elsewhere first (a synthetic study's scratch files), in one locked transaction; the
+    study row is made if missing and its identity checked as :func:`run_session` does.
+    Returns code -> slot (a code reserved before keeps its slot) and the notes of a forced
+    identity mismatch."""
+    notes: list[str] = []
+    with Session(engine) as s, s.begin():
+        study = _study(s, protocol, db, force, notes)
+        orders = _slot_orders(protocol, study)
+        out = {code: ledger.allocate(s, study.id, code, None, orders.row) for code in codes}
+        for code, slot in out.items():
+            _check_slot(slot, protocol, code)
+    return out, notes
 
 
 def _open(
@@ -221,6 +277,7 @@ def _open(
     seed: int | None,
     resume: bool,
     force: bool,
+    slot: int | None = None,
 ) -> _Opened:
     """Resume the participant's session or start a new one, in one transaction."""
     notes: list[str] = []
@@ -253,7 +310,8 @@ def _open(
                     f"{len(sessions)} (last id {sessions[-1].id}); nothing was deleted"
                 )
             if person is None:
-                person = _new_person(s, study, protocol, code, participant, seed)
+                _not_reserved_elsewhere(s, study, code, db, slot)
+                person = _new_person(s, study, protocol, code, participant, seed, slot)
             row = SessionRow(
                 participant_id=person.id,
                 status="running",
@@ -287,6 +345,8 @@ def run_session(
     on_tick: Callable[[int, TrialWriter], None] | None = None,
     recordings: str | Path | None = None,
     durable: bool = True,
+    slot: int | None = None,
+    lock: bool = True,
 ) -> SessionSummary:
     """Run (or resume) one participant's session of ``protocol`` and store everything.
 
@@ -321,6 +381,13 @@ def run_session(
     durable : bool
         False only for a scratch database thrown away after a crash (no fsync on commit,
         :func:`study.data.storage.open_database`): a synthetic study's per-participant file.
+    slot : int, optional
+        The order slot reserved for a new participant (:func:`reserve_slots`; a synthetic
+        study's scratch file); default the next slot of the study's ledger.
+    lock : bool
+        Hold the session's lock file (``<db stem>_locks/session-<code>.lock``, SQLite only)
+        while it runs, so ``asa db check`` knows it is live and a second process cannot
+        run the same participant; False for scratch files.
 
     Returns
     -------
@@ -329,15 +396,64 @@ def run_session(
     Raises
     ------
     ValueError
-        A bad participant code, a database not ours or made with another protocol, a
-        second session without ``force``, nothing to resume.
+        A bad participant code, a database not ours or made with another protocol, study
+        seed or platform version, a second session without ``force``, nothing to resume,
+        the participant's session running in another process.
     """
     code = check_code(participant_code)
+    with _session_lock(db, code, lock):
+        return _run_locked(
+            protocol, code, db, participant, seed, resume, force, progress, control,
+            clock, camera_hz, on_tick, recordings, durable, slot,
+        )  # fmt: skip
+
+
+@contextlib.contextmanager
+def _session_lock(db: str | Path, code: str, lock: bool) -> Iterator[None]:
+    """Hold participant ``code``'s session lock file (SQLite files only; see
+    :mod:`study.data.locks`); another process holding it is refused with one line. Where
+    no lock file can be made (no folder, read-only) the session runs without one, and
+    opening the database says what is wrong."""
+    path = locks.session_lock(database_file(db), code)
+    stack = contextlib.ExitStack()
+    if lock and database_url(db).startswith("sqlite:///") and path.parent.parent.is_dir():
+        try:
+            stack.enter_context(locks.held(path, wait=False))
+        except locks.LockHeld as held:
+            raise ValueError(
+                f"{db}: field 'participant.code': the session of participant {code} is "
+                f"running in another process (pid {held.pid}); wait for it to end or stop it"
+            ) from None
+        except OSError:
+            pass
+    with stack:
+        yield
+
+
+def _run_locked(
+    protocol: Protocol,
+    code: str,
+    db: str | Path,
+    participant: SessionParticipant,
+    seed: int | None,
+    resume: bool,
+    force: bool,
+    progress: Callable[[str], None] | None,
+    control: ExperimenterControl | None,
+    clock: FreeClock | WallClock | None,
+    camera_hz: float | None,
+    on_tick: Callable[[int, TrialWriter], None] | None,
+    recordings: str | Path | None,
+    durable: bool,
+    slot: int | None,
+) -> SessionSummary:
+    """:func:`run_session` once the session's lock is held."""
     engine = open_database(db, durable=durable)
     try:
         opened = _open(
-            engine, protocol, code, db, participant, seed=seed, resume=resume, force=force
-        )
+            engine, protocol, code, db, participant,
+            seed=seed, resume=resume, force=force, slot=slot,
+        )  # fmt: skip
         runner = _runner(
             protocol, engine, db, participant, opened,
             progress, control, clock, camera_hz, on_tick, recordings,

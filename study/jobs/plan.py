@@ -1,5 +1,6 @@
 """Each participant's mode order under a protocol's counterbalancing scheme, and its
-balance check (``asa plan``; thesis section 7.6.1.3)."""
+balance check (``asa plan``; thesis section 7.6.1.3); the order ledger of an existing
+study (``asa plan --db``: every slot issued, its participant, order and status)."""
 
 from __future__ import annotations
 
@@ -7,9 +8,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from sqlalchemy.orm import Session
 
+from study.data.ledger import entries
+from study.data.storage import get_study, open_database
 from study.engine.counterbalance import assign_indexed, balance
-from study.engine.protocol import load_protocol
+from study.engine.protocol import load_protocol, parse_protocol
 
 
 def participant_code(i: int, n: int) -> str:
@@ -95,4 +99,72 @@ def format_plan(result: dict[str, Any]) -> str:
         f"balanced for {result['scheme']}: {'yes' if result['balanced'] else 'NO'}",
     ]
     lines += [f"warning: {w}" for w in result["warnings"]]
+    return "\n".join(lines)
+
+
+def ledger(db: str | Path) -> dict[str, Any]:
+    """The order ledger of the study in ``db``, JSON-ready: ``protocol`` (name), ``sha256``,
+    ``scheme``, ``slots`` (list of ``{slot, code, order_index, modes, status, released}``
+    in slot order; ``status`` is the holder's last session's, ``excluded``, ``reserved``
+    or ``no session``; ``released`` the codes of excluded earlier holders) and the
+    ``balance`` of the orders of the slots' holders (:func:`balance`), None without any.
+
+    Raises
+    ------
+    ValueError
+        Naming the database, when it is not a study database or holds no study.
+    """
+    engine = open_database(db, create=False)
+    try:
+        with Session(engine) as s:
+            study = get_study(s)
+            if study is None:
+                raise ValueError(f"{db}: field 'study': no study in this database yet")
+            rows = entries(s, study.id)
+            name, sha, text = study.name, study.protocol_sha256, study.protocol_text
+    finally:
+        engine.dispose()
+    try:
+        scheme = parse_protocol(text, "<stored protocol>").counterbalancing
+    except ValueError:
+        scheme = None
+    orders = [r.mode_order for r in rows if r.mode_order]
+    return {
+        "protocol": name,
+        "sha256": sha,
+        "scheme": scheme,
+        "slots": [
+            {
+                "slot": r.slot,
+                "code": r.code,
+                "order_index": r.order_index,
+                "modes": list(r.mode_order),
+                "status": r.status,
+                "released": list(r.released),
+            }
+            for r in rows
+        ],  # fmt: skip
+        "balance": balance(orders, scheme=scheme) if orders else None,
+    }
+
+
+def format_ledger(result: dict[str, Any]) -> str:
+    """The ledger as text: one line per slot, then the balance verdict and warnings."""
+    lines = [
+        f"study {result['protocol']}, sha256 {result['sha256'][:12]}, scheme {result['scheme']}",
+        f"{len(result['slots'])} order slots issued",
+        "",
+        "slot  participant  row  status      order",
+    ]
+    for r in result["slots"]:
+        row = "-" if r["order_index"] is None else str(r["order_index"])
+        line = f"{r['slot']:>4}  {r['code']:<11}  {row:>3}  {r['status']:<10}  "
+        line += " > ".join(r["modes"]) if r["modes"] else "-"
+        if r["released"]:
+            line += f"  (released by {', '.join(r['released'])})"
+        lines.append(line)
+    b = result["balance"]
+    if b is not None:
+        lines += ["", f"balanced for {result['scheme']}: {'yes' if b['balanced'] else 'no'}"]
+        lines += [f"warning: {w}" for w in b["warnings"]]
     return "\n".join(lines)

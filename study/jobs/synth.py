@@ -5,7 +5,9 @@ worker processes, into one database that does not depend on the number of worker
 Each participant runs into its own temporary SQLite file in a *spawn* worker; the parent
 merges finished participants in participant order (:mod:`study.data.merge`). Started
 again after an interruption, participants already in the database are skipped and the
-others run from scratch. Also the pilot's sanity summary.
+others run from scratch. One synthetic study writes a database at a time (its lock file,
+:mod:`study.data.locks`; a second one waits); each participant's order slot is reserved
+in the study's ledger before it runs. Also the pilot's sanity summary.
 """
 
 from __future__ import annotations
@@ -21,13 +23,15 @@ from typing import Any
 
 from sqlalchemy import select
 from sqlalchemy.engine import Connection, Engine
+from sqlalchemy.orm import Session
 
+from study.data import identity, locks
 from study.data.dbtools import remove_recordings_of
-from study.data.merge import merge_participant, merged_codes, table_rows
-from study.data.storage import TRIAL_FINISHED, Base, open_database
+from study.data.merge import merge_participant, table_rows
+from study.data.storage import TRIAL_FINISHED, Base, Participant, open_database
 from study.engine.protocol import Protocol, load_protocol
 from study.engine.recognition import RecognitionTally
-from study.engine.session import derive_seed, run_session
+from study.engine.session import derive_seed, reserve_slots, run_session
 from study.participants.synthetic import Population, SyntheticParticipant
 
 
@@ -54,6 +58,7 @@ class _Job:
     recordings: Path
     population: Population
     study_seed: int
+    slot: int = 0  # the order slot reserved in the study database
 
 
 @dataclass(frozen=True, slots=True)
@@ -103,6 +108,8 @@ def _run_job(job: _Job) -> _Done:
         seed=job.seed,
         recordings=job.recordings,
         durable=False,  # the scratch file is deleted and rebuilt after a crash
+        slot=job.slot,
+        lock=False,  # the study's synth lock covers the scratch folder
     )
     simulated = sum(
         (t.completion_time_s or 0.0) for t in summary.trials if t.completion_time_s is not None
@@ -140,6 +147,7 @@ def run_synthetic_study(
     recordings: str | Path | None = None,
     progress: Callable[[str], None] | None = None,
     population: Population | None = None,
+    force: bool = False,
 ) -> SynthSummary:
     """Run ``participants`` synthetic participants' sessions of ``protocol`` into ``db``.
 
@@ -161,9 +169,13 @@ def run_synthetic_study(
         Folder for the recordings (``<code>/...rrd``); default ``<db stem>_recordings``
         beside the database.
     progress : callable, optional
-        One line per finished participant, with the live count.
+        One line per finished participant, with the live count; one line when another
+        synthetic study holds the database and this one waits for it.
     population : Population, optional
         The population model; default ``Population()``.
+    force : bool
+        Write into a study made with another protocol, protocol seed, platform version or
+        synthetic seed (recorded in each merged session's ``forced`` and ``note``).
 
     Returns
     -------
@@ -173,7 +185,7 @@ def run_synthetic_study(
     ------
     ValueError
         Bad parameters (naming them), a database URL instead of a file, a database of
-        another protocol.
+        another protocol, seed or platform version without ``force``.
     """
     start = time.perf_counter()
     say = progress if progress is not None else (lambda line: None)
@@ -182,44 +194,82 @@ def run_synthetic_study(
     population = population if population is not None else Population()
     db_path, work, rec = _paths(db, recordings)
     codes = participant_codes(n)
-    todo, skipped = _todo(codes, db, db_path, proto)
-    if skipped:
-        say(f"{len(skipped)} participant(s) already in {db_path.name}: skipped")
-    work.mkdir(exist_ok=True)
-    jobs = [
-        _job(i, codes[i], seed, proto, work=work, recordings=rec, population=population)
-        for i in todo
-    ]
-    merger = _Merger(open_database(db_path), jobs, work, total=n, skipped=len(skipped), say=say)
-    try:
-        _run_jobs(jobs, workers, merger.finish)
-    finally:
-        merger.engine.dispose()
+
+    def waiting(pid: str) -> None:
+        say(f"{db_path.name}: another synthetic study (pid {pid}) is writing it; waiting")
+
+    with locks.held(locks.synth_lock(db_path), wait=True, on_wait=waiting):
+        engine = open_database(db_path)
+        try:
+            merger = _study(engine, proto, db, codes, seed, force, work, rec, population, say)
+            _run_jobs(list(merger.jobs.values()), workers, merger.finish)
+        finally:
+            engine.dispose()
     if not merger.order:
         with contextlib.suppress(OSError):
             work.rmdir()
     return SynthSummary(
         db=db_path,
         codes=codes,
-        run=tuple(j.code for j in jobs),
-        skipped=skipped,
+        run=tuple(j.code for j in merger.jobs.values()),
+        skipped=merger.skipped_codes,
         statuses=merger.statuses,
         wall_s=time.perf_counter() - start,
     )
 
 
-def _todo(
-    codes: tuple[str, ...], db: str | Path, db_path: Path, protocol: Protocol
-) -> tuple[list[int], tuple[str, ...]]:
-    """Indices of the participants still to run, and the codes already in the database."""
-    merged, sha = merged_codes(db_path)
-    if sha is not None and sha != protocol.sha256:
-        raise ValueError(
-            f"{db}: field 'study.protocol_sha256': the database was made with another "
-            f"protocol than {protocol.source}; use a new database file"
-        )
+def _study(
+    engine: Engine,
+    proto: Protocol,
+    db: str | Path,
+    codes: tuple[str, ...],
+    seed: int,
+    force: bool,
+    work: Path,
+    rec: Path,
+    population: Population,
+    say: Callable[[str], None],
+) -> _Merger:
+    """Under the synth lock: the participants still to run, their order slots reserved
+    and the study's identity checked; the merger that takes them in."""
+    merged, study_seed = _merged(engine)
+    notes = identity.check(
+        db,
+        identity.mismatches(
+            {"synthetic_study_seed": study_seed}, {"synthetic_study_seed": seed},
+            prefix="participant.parameters",
+        ),
+        force,
+    )  # fmt: skip
     todo = [i for i, code in enumerate(codes) if code not in merged]
-    return todo, tuple(c for c in codes if c in merged)
+    skipped = tuple(c for c in codes if c in merged)
+    if skipped:
+        say(f"{len(skipped)} participant(s) already in {Path(db).name}: skipped")
+    slots, more = reserve_slots(engine, proto, db, [codes[i] for i in todo], force=force)
+    work.mkdir(exist_ok=True)
+    jobs = [
+        _job(i, codes[i], seed, proto, work=work, recordings=rec, population=population,
+             slot=slots[codes[i]])
+        for i in todo
+    ]  # fmt: skip
+    return _Merger(
+        engine, jobs, work, total=len(codes), skipped=skipped, say=say,
+        note="; ".join(notes + more),
+    )  # fmt: skip
+
+
+def _merged(engine: Engine) -> tuple[set[str], int | None]:
+    """The participant codes in the study database and its synthetic seed (that of its
+    first synthetic participant; None without one)."""
+    with Session(engine) as s:
+        people = s.scalars(select(Participant).order_by(Participant.id)).all()
+        seeds = [
+            p.parameters.get("synthetic_study_seed")
+            for p in people
+            if p.kind == "synthetic" and isinstance(p.parameters, dict)
+        ]
+        seeds = [x for x in seeds if x is not None]
+        return {p.code for p in people}, (int(seeds[0]) if seeds else None)
 
 
 def _job(
@@ -231,6 +281,7 @@ def _job(
     work: Path,
     recordings: Path,
     population: Population,
+    slot: int = 0,
 ) -> _Job:
     """Participant ``index`` of a study seeded with ``seed``: its session seed, its
     behaviour seed and its temporary database."""
@@ -244,6 +295,7 @@ def _job(
         recordings=recordings,
         population=population,
         study_seed=seed,
+        slot=slot,
     )
 
 
@@ -275,17 +327,20 @@ class _Merger:
         work: Path,
         *,
         total: int,
-        skipped: int,
+        skipped: tuple[str, ...],
         say: Callable[[str], None],
+        note: str = "",
     ) -> None:
         self.engine = engine
+        self.note = note  # a forced identity mismatch, recorded in every merged session
+        self.skipped_codes = skipped
         self.work = work
         self.jobs = {j.index: j for j in jobs}
         self.order = [j.index for j in jobs]  # not yet merged, in participant order
         self.done: dict[int, _Done] = {}
         self.statuses: dict[str, str] = {}
         self.total = total
-        self.skipped = skipped
+        self.skipped = len(skipped)
         self.finished = 0
         self.say = say
 
@@ -303,8 +358,9 @@ class _Merger:
             done = self.done.pop(self.order.pop(0))
             job = self.jobs[done.index]
             merge_participant(
-                job.work_db, self.engine, src_folder=self.work, dst_folder=self.work.parent
-            )
+                job.work_db, self.engine, src_folder=self.work, dst_folder=self.work.parent,
+                note=self.note,
+            )  # fmt: skip
             _remove_db(job.work_db)
 
 
