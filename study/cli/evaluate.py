@@ -17,6 +17,7 @@ from pathlib import Path
 import click
 
 from autonomy.evaluation import format_report
+from study.cli import COUNT, SEED, WORKERS
 from study.jobs.evaluation import DemonstrationsMismatchError, run_evaluation
 
 _FLAGS = ("folds", "workers", "repeats")  # run_evaluation's parameters that are flags
@@ -85,19 +86,19 @@ class _Progress:
     "shipped model).",
 )
 @click.option("--folds", default=5, show_default=True, type=int, help="Folds, by run.")
-@click.option("--seed", default=0, show_default=True, type=int, help="Seed of the folds etc.")
+@click.option("--seed", default=0, show_default=True, type=SEED, help="Seed of the folds etc.")
 @click.option(
     "--repeats",
     default=1,
     show_default=True,
-    type=int,
+    type=COUNT,
     help="Evaluate with this many seeds (--seed, --seed + 1, ...) and report the mean and "
     "spread of the F0.5 over them.",
 )
 @click.option(
     "--workers",
     default=None,
-    type=int,
+    type=WORKERS,
     help="Worker processes for the folds and introspection pairs; default the CPUs.",
 )
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")

@@ -8,7 +8,7 @@ import json
 
 import click
 
-from study.cli import flag_errors
+from study.cli import PARTICIPANTS, SEED, flag_errors
 from study.jobs.plan import format_plan, plan
 
 
@@ -21,13 +21,13 @@ from study.jobs.plan import format_plan, plan
 )
 @click.option(
     "--participants",
-    type=int,
+    type=PARTICIPANTS,
     default=None,
     help="Number of participants [default: the protocol's study.participants].",
 )
 @click.option(
     "--seed",
-    type=int,
+    type=SEED,
     default=None,
     help="Seed of the random scheme [default: the protocol's study.seed].",
 )

@@ -8,6 +8,8 @@ from pathlib import Path
 
 import click
 
+from study.cli import ROW_ID
+
 
 @click.command()
 @click.option(
@@ -20,7 +22,7 @@ import click
 @click.option(
     "--trial",
     required=True,
-    type=int,
+    type=ROW_ID,
     help="The trial's row id in the database (trial.id, as in `asa export`); "
     "an unknown id lists the participant's trials.",
 )

@@ -13,6 +13,7 @@ from pathlib import Path
 import click
 
 from autonomy.training import format_summary
+from study.cli import SEED
 from study.jobs.training import train_model
 
 
@@ -35,7 +36,7 @@ from study.jobs.training import train_model
     "--seed",
     default=0,
     show_default=True,
-    type=int,
+    type=SEED,
     help="Seed of every random choice in training.",
 )
 def train_command(demonstrations: Path, out: Path, seed: int) -> None:
