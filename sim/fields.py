@@ -49,9 +49,9 @@ class FieldReader:
         *,
         positive: bool = False,
         non_negative: bool = False,
-        maximum: float = MAX_NUMBER,
+        maximum: float = math.inf,
     ) -> float:
-        """A finite number, ``|x| <= MAX_NUMBER`` and ``x <= maximum``."""
+        """A finite number, ``x <= maximum`` and ``|x| <= MAX_NUMBER``."""
         value = self._get(key, _REQUIRED if default is None else default)
         if (
             isinstance(value, bool)
@@ -63,9 +63,10 @@ class FieldReader:
             raise self.fail(key, f"must be a positive number, got {value!r}")
         if non_negative and value < 0:
             raise self.fail(key, f"must be zero or positive, got {value!r}")
-        if abs(value) > MAX_NUMBER or value > maximum:
-            bound = min(maximum, MAX_NUMBER)
-            raise self.fail(key, f"must be at most {bound:g} in size, got {value!r}")
+        if value > maximum:
+            raise self.fail(key, f"must be at most {maximum:g}, got {value!r}")
+        if abs(value) > MAX_NUMBER:
+            raise self.fail(key, f"must lie within -{MAX_NUMBER:g}..{MAX_NUMBER:g}, got {value!r}")
         return float(value)
 
     def integer(

@@ -209,8 +209,10 @@ def _check_numbers(path: Path, name: str, frame: pd.DataFrame) -> None:
         bad = raw.notna().to_numpy() & ~(np.abs(values) <= MAX_MAGNITUDE)  # NaN: not a number
         if bad.any():
             row = int(np.flatnonzero(bad)[0])
+            cell = raw.iloc[row]
+            cell = cell.item() if isinstance(cell, np.generic) else cell
             raise ValueError(
-                f"{path}: column {column.name!r} line {row + 2}: {raw.iloc[row]!r} is not a "
+                f"{path}: column {column.name!r} line {row + 2}: {cell!r} is not a "
                 f"finite number of size at most {MAX_MAGNITUDE:g}"
             )
 

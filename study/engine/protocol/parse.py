@@ -273,14 +273,14 @@ def _secondary(r: FieldReader) -> SecondarySettings:
             f"must be a list of at most {MAX_QUESTIONS} integers of size at most "
             f"{MAX_OFFSET}, got {short_repr(offsets)}",
         )
+    values = {
+        "p_correct": r.number("p_correct", d.p_correct),
+        "timeout_s": r.number("timeout_s", d.timeout_s, maximum=MAX_DURATION_S),
+        "gap_s": r.number("gap_s", d.gap_s, maximum=MAX_DURATION_S),
+        "p_addition": r.number("p_addition", d.p_addition),
+    }
     try:
-        s = SecondarySettings(
-            p_correct=r.number("p_correct", d.p_correct),
-            timeout_s=r.number("timeout_s", d.timeout_s, maximum=MAX_DURATION_S),
-            gap_s=r.number("gap_s", d.gap_s, maximum=MAX_DURATION_S),
-            near_miss_offsets=tuple(offsets),
-            p_addition=r.number("p_addition", d.p_addition),
-        )
+        s = SecondarySettings(near_miss_offsets=tuple(offsets), **values)
     except ValueError as error:  # "SecondarySettings.<field>: <message>"
         key, _, message = str(error).removeprefix("SecondarySettings.").partition(": ")
         raise r.fail(key, message) from None
