@@ -53,11 +53,7 @@ class FieldReader:
     ) -> float:
         """A finite number, ``x <= maximum`` and ``|x| <= MAX_NUMBER``."""
         value = self._get(key, _REQUIRED if default is None else default)
-        if (
-            isinstance(value, bool)
-            or not isinstance(value, int | float)
-            or not math.isfinite(value)
-        ):
+        if not _finite(value, math.inf):
             raise self.fail(key, f"must be a number, got {_short(value)}")
         if positive and value <= 0:
             raise self.fail(key, f"must be a positive number, got {value!r}")
@@ -95,13 +91,7 @@ class FieldReader:
         ok = (
             isinstance(value, list)
             and len(value) == n
-            and all(
-                isinstance(v, int | float)
-                and not isinstance(v, bool)
-                and math.isfinite(v)
-                and abs(v) <= MAX_COORDINATE_M
-                for v in value
-            )
+            and all(_finite(v, MAX_COORDINATE_M) for v in value)
         )
         if not ok:
             raise self.fail(
@@ -123,15 +113,7 @@ class FieldReader:
             isinstance(value, list)
             and len(value) >= minimum
             and all(
-                isinstance(p, list)
-                and len(p) == 2
-                and all(
-                    isinstance(v, int | float)
-                    and not isinstance(v, bool)
-                    and math.isfinite(v)
-                    and abs(v) <= MAX_COORDINATE_M
-                    for v in p
-                )
+                isinstance(p, list) and len(p) == 2 and all(_finite(v, MAX_COORDINATE_M) for v in p)
                 for p in value
             )
         )
@@ -163,3 +145,13 @@ class FieldReader:
         unknown = sorted(set(self.data) - self.used)
         if unknown:
             raise self.fail(unknown[0], "is not a known field")
+
+
+def _finite(value: Any, limit: float) -> bool:
+    """Whether ``value`` is a number (not a bool) with ``|value| <= limit``; an integer too
+    large for a float is not (``math.isfinite`` would raise ``OverflowError``)."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return False
+    if isinstance(value, int):
+        return abs(value) <= min(limit, 1e300)
+    return math.isfinite(value) and abs(value) <= limit
