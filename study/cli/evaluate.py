@@ -17,7 +17,7 @@ from pathlib import Path
 import click
 
 from autonomy.evaluation import format_report
-from study.cli import COUNT, SEED, WORKERS
+from study.cli import SEED
 from study.jobs.evaluation import DemonstrationsMismatchError, run_evaluation
 
 _FLAGS = ("folds", "workers", "repeats")  # run_evaluation's parameters that are flags
@@ -91,14 +91,14 @@ class _Progress:
     "--repeats",
     default=1,
     show_default=True,
-    type=COUNT,
+    type=int,
     help="Evaluate with this many seeds (--seed, --seed + 1, ...) and report the mean and "
     "spread of the F0.5 over them.",
 )
 @click.option(
     "--workers",
     default=None,
-    type=WORKERS,
+    type=int,
     help="Worker processes for the folds and introspection pairs; default the CPUs.",
 )
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
