@@ -152,3 +152,57 @@ def test_scene_names_follow_the_participant_code_rule() -> None:
     from study.engine.session import CODE_PATTERN
 
     assert SAFE_NAME.pattern == CODE_PATTERN.pattern
+
+
+@pytest.fixture
+def tiny_disk(tmp_path: Path):
+    """A 400 kB tmpfs mounted on a new folder (root only; skipped elsewhere), unmounted after."""
+    import os
+
+    if not hasattr(os, "geteuid") or os.geteuid() != 0:
+        pytest.skip("mounting a tmpfs needs root")
+    folder = tmp_path / "disk"
+    folder.mkdir()
+    mounted = subprocess.run(
+        ["mount", "-t", "tmpfs", "-o", "size=400k", "tmpfs", str(folder)],
+        capture_output=True,
+        text=True,
+    )
+    if mounted.returncode != 0:
+        pytest.skip(f"cannot mount a tmpfs: {mounted.stderr.strip()}")
+    try:
+        yield folder
+    finally:
+        subprocess.run(["umount", str(folder)], check=False)
+
+
+@pytest.mark.slow  # 8-17 s: a real session's start-up
+def test_a_full_tmpfs_ends_a_session_in_one_asa_line_and_a_consistent_database(
+    tiny_disk: Path,
+) -> None:
+    """A real full disk (ENOSPC, SQLite's SQLITE_FULL): one ``asa:`` line naming the
+    database, and `asa db check` finds it clean. rerun's own writer thread may log its
+    failure to write the recording too (its lines are rerun's, not a traceback)."""
+    db = tiny_disk / "study.db"
+    root = Path(__file__).resolve().parents[1]
+    argv = ["run", "--protocol", "pilot", "--participant", "P01", "--db", str(db)]
+    done = subprocess.run(
+        [sys.executable, "-m", "study.cli", *argv, "--input", "scripted", "--headless", "--fast"],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        cwd=root,
+    )
+    assert done.returncode == 2, done.stderr
+    assert "Traceback" not in done.stderr
+    ours = [line for line in done.stderr.splitlines() if line.startswith("asa")]
+    assert len(ours) == 1 and ours[0].startswith(f"asa: error: {tiny_disk}"), done.stderr
+    assert "no space left on device" in ours[0] or "disk is full" in ours[0], ours[0]
+    check = subprocess.run(
+        [sys.executable, "-m", "study.cli", "db", "check", "--db", str(db), "--no-verify"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        cwd=root,
+    )
+    assert check.returncode == 0 and "clean" in check.stdout, check.stdout + check.stderr
