@@ -339,11 +339,10 @@ def build_report(
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise ValueError(f"{out}: out must be a folder, and this is a file")
-    say(f"reading {db}")
-    data = load_study(db)
+    data = load_study(db)  # bad input fails before any progress line: one line on stderr
     frames = tidy(data)
     say(
-        f"{len(frames.trials)} main trials of {frames.trials['participant'].nunique()} "
+        f"read {db}: {len(frames.trials)} main trials of {frames.trials['participant'].nunique()} "
         f"participants, modes {', '.join(frames.modes)}"
     )
     (out / "tables").mkdir(parents=True, exist_ok=True)

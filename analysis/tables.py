@@ -17,6 +17,8 @@ import pandas as pd
 
 __all__ = ["SameColumnError", "apa_anova", "format_p", "format_summary", "read_long_csv"]
 
+MAX_MAGNITUDE = 1e15  # |x| of a dependent variable; beyond it sums of squares lose every digit
+
 
 class SameColumnError(ValueError):
     """``dv``, ``within`` and ``subject`` of :func:`read_long_csv` name fewer than three
@@ -141,6 +143,13 @@ def _dv_values(path: Path, raw: pd.DataFrame, dv: str) -> pd.Series:
     if infinite.any():
         line = int(raw.index[np.flatnonzero(infinite)[0]])
         raise ValueError(f"{path}: column {dv!r} line {line}: {raw.loc[line, dv]!r} is not finite")
+    huge = np.abs(values.to_numpy(dtype=float)) > MAX_MAGNITUDE
+    if huge.any():  # squares and sums of squares would overflow or lose every digit
+        line = int(raw.index[np.flatnonzero(huge)[0]])
+        raise ValueError(
+            f"{path}: column {dv!r} line {line}: {raw.loc[line, dv]!r} is too large "
+            f"(at most {MAX_MAGNITUDE:g} in size)"
+        )
     return values
 
 

@@ -200,7 +200,8 @@ def load_model(path: str | Path | None = None) -> ContextualModel:
             f"autonomy/models/README.md)"
         )
     try:
-        with np.load(path, allow_pickle=False) as data:
+        # our own handle: np.load leaves its file open when the archive is corrupt
+        with open(path, "rb") as handle, np.load(handle, allow_pickle=False) as data:
             arrays = {name: data[name] for name in data.files}
     except Exception as error:  # zip, format and pickle errors all mean a bad file
         raise ValueError(f"{path}: not a readable .npz model file ({error})") from None

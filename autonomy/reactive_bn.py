@@ -463,9 +463,7 @@ def oa_turning(u: np.ndarray, alpha: float, points: np.ndarray, robot: RobotMode
     -------
     (3,) ``(alpha v_x, alpha v_y, omega')`` with ``|omega'| <= |omega|``.
     """
-    turn, _ = safe_command(
-        np.array([0.0, 0.0, u[2]]), points, robot, horizon_s=ROTATION_HORIZON_S
-    )
+    turn, _ = safe_command(np.array([0.0, 0.0, u[2]]), points, robot, horizon_s=ROTATION_HORIZON_S)
     return np.array([alpha * u[0], alpha * u[1], turn[2]])
 
 

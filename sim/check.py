@@ -30,6 +30,7 @@ import numpy as np
 from scipy import ndimage
 
 from sim.occupancy import OccupancyGrid, build_grid, inflate
+from sim.placement import placement_problems
 from sim.scene import Box, Cylinder, Scenario, Table
 from sim.semantics import derive_components
 from sim.types import Pose2D, SemanticComponent
@@ -464,14 +465,18 @@ def check_scene(
     Returns
     -------
     list of Problem
-        In order: start, route, dock, inspection, passages. ``Problem.line(source)``
+        In order: impossible placements (:func:`sim.placement.placement_problems`:
+        a pose inside an obstacle, a question region of zero area or off the map),
+        start, route, dock, inspection, passages. ``Problem.line(source)``
         gives the one-line message naming the file and the element.
     """
     s = CheckSettings() if settings is None else settings
     c = _context(scenario, s)
     comps = derive_components(scenario) if components is None else components
+    placed = [Problem(field, message) for field, message in placement_problems(scenario)]
     return (
-        _check_start(c)
+        placed
+        + _check_start(c)
         + _check_route(c)
         + _check_dock(c)
         + _check_inspection(c)

@@ -14,7 +14,11 @@ from typing import Any
 
 import numpy as np
 
+from sim.limits import MAX_COORDINATE_M, MAX_COUNT
+from sim.limits import short_repr as _short
+
 _REQUIRED = object()
+MAX_NUMBER = 1e6  # |x| of any number field without a bound of its own
 
 
 class FieldReader:
@@ -39,33 +43,45 @@ class FieldReader:
         return default
 
     def number(
-        self, key: str, default: Any = None, *, positive: bool = False, non_negative: bool = False
+        self,
+        key: str,
+        default: Any = None,
+        *,
+        positive: bool = False,
+        non_negative: bool = False,
+        maximum: float = math.inf,
     ) -> float:
+        """A finite number, ``x <= maximum`` and ``|x| <= MAX_NUMBER``."""
         value = self._get(key, _REQUIRED if default is None else default)
-        if (
-            isinstance(value, bool)
-            or not isinstance(value, int | float)
-            or not math.isfinite(value)
-        ):
-            raise self.fail(key, f"must be a number, got {value!r}")
+        if not _finite(value, math.inf):
+            raise self.fail(key, f"must be a number, got {_short(value)}")
         if positive and value <= 0:
             raise self.fail(key, f"must be a positive number, got {value!r}")
         if non_negative and value < 0:
             raise self.fail(key, f"must be zero or positive, got {value!r}")
+        if value > maximum:
+            raise self.fail(key, f"must be at most {maximum:g}, got {value!r}")
+        if abs(value) > MAX_NUMBER:
+            raise self.fail(key, f"must lie within -{MAX_NUMBER:g}..{MAX_NUMBER:g}, got {value!r}")
         return float(value)
 
-    def integer(self, key: str, default: Any = None, *, minimum: int = 1) -> int:
+    def integer(
+        self, key: str, default: Any = None, *, minimum: int = 1, maximum: int = MAX_COUNT
+    ) -> int:
+        """An integer in ``minimum..maximum``."""
         value = self._get(key, _REQUIRED if default is None else default)
         if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
-            raise self.fail(key, f"must be an integer >= {minimum}, got {value!r}")
+            raise self.fail(key, f"must be an integer >= {minimum}, got {_short(value)}")
+        if value > maximum:
+            raise self.fail(key, f"must be an integer in {minimum}..{maximum}, got {value!r}")
         return value
 
     def string(self, key: str, default: Any = None, *, allowed: tuple[str, ...] = ()) -> str:
         value = self._get(key, _REQUIRED if default is None else default)
         if not isinstance(value, str):
-            raise self.fail(key, f"must be a string, got {value!r}")
+            raise self.fail(key, f"must be a string, got {_short(value)}")
         if allowed and value not in allowed:
-            raise self.fail(key, f"must be one of {', '.join(allowed)}, got {value!r}")
+            raise self.fail(key, f"must be one of {', '.join(allowed)}, got {_short(value)}")
         return value
 
     def vector(
@@ -75,13 +91,14 @@ class FieldReader:
         ok = (
             isinstance(value, list)
             and len(value) == n
-            and all(
-                isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
-                for v in value
-            )
+            and all(_finite(v, MAX_COORDINATE_M) for v in value)
         )
         if not ok:
-            raise self.fail(key, f"must be a list of {n} numbers, got {value!r}")
+            raise self.fail(
+                key,
+                f"must be a list of {n} numbers of size at most {MAX_COORDINATE_M:g}, "
+                f"got {_short(value)}",
+            )
         if unit and not all(0.0 <= v <= 1.0 for v in value):
             raise self.fail(key, f"must hold numbers in [0, 1], got {value!r}")
         if positive and not all(v > 0 for v in value):
@@ -96,18 +113,15 @@ class FieldReader:
             isinstance(value, list)
             and len(value) >= minimum
             and all(
-                isinstance(p, list)
-                and len(p) == 2
-                and all(
-                    isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
-                    for v in p
-                )
+                isinstance(p, list) and len(p) == 2 and all(_finite(v, MAX_COORDINATE_M) for v in p)
                 for p in value
             )
         )
         if not ok:
             raise self.fail(
-                key, f"must be a list of at least {minimum} [x, y] points of finite numbers"
+                key,
+                f"must be a list of at least {minimum} [x, y] points of finite numbers of "
+                f"size at most {MAX_COORDINATE_M:g} m",
             )
         return np.array(value, dtype=float).reshape(-1, 2)
 
@@ -131,3 +145,13 @@ class FieldReader:
         unknown = sorted(set(self.data) - self.used)
         if unknown:
             raise self.fail(unknown[0], "is not a known field")
+
+
+def _finite(value: Any, limit: float) -> bool:
+    """Whether ``value`` is a number (not a bool) with ``|value| <= limit``; an integer too
+    large for a float is not (``math.isfinite`` would raise ``OverflowError``)."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return False
+    if isinstance(value, int):
+        return abs(value) <= min(limit, 1e300)
+    return math.isfinite(value) and abs(value) <= limit

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sim.limits import MAX_CELLS
 from sim.scenario import Box, Cylinder, Scenario
 
 _EPS = 1e-9  # [m] geometric tolerance: touching is not overlapping
@@ -171,6 +172,12 @@ def build_grid(scenario: Scenario, *, resolution: float = 0.05) -> OccupancyGrid
     (x0, y0), (x1, y1) = scenario.bounds
     cols = max(int(math.ceil((x1 - x0) / resolution - 1e-9)), 1)
     rows = max(int(math.ceil((y1 - y0) / resolution - 1e-9)), 1)
+    if rows * cols > MAX_CELLS:
+        raise ValueError(
+            f"{scenario.source or '<scenario>'}: a grid of {x1 - x0:g} m x {y1 - y0:g} m at "
+            f"{resolution:g} m per cell has {rows * cols} cells, more than {MAX_CELLS}; "
+            f"use a coarser resolution"
+        )
     occ = np.zeros((rows, cols), dtype=bool)
     origin = (float(x0), float(y0))
     for box in scenario.obstacle_boxes():

@@ -12,13 +12,14 @@ on load; a bad one raises ``ValueError`` naming the file, the field
 from __future__ import annotations
 
 import math
-import tomllib
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from sim.fields import FieldReader
+from sim.limits import MAX_CELLS, MAX_EXTENT_M, check_name, loads_toml
+from sim.placement import placement_problems
 from sim.scene import (
     Box,
     CameraSpec,
@@ -57,6 +58,9 @@ __all__ = [
 ]
 
 SCENARIO_DIR = Path(__file__).resolve().parent / "scenarios"
+MAX_RAYS = 10_000  # beams of one laser scan (fov / resolution)
+MAX_PIXELS = 4096  # a camera image's width or height [px]
+GRID_RESOLUTION_M = 0.05  # [m] the cell size the study's occupancy grids use
 
 
 # ------------------------------------------------------------------------ defaults
@@ -187,6 +191,10 @@ def _laser(r: FieldReader, defaults: dict[str, Any]) -> LaserSpec:
     )
     if spec.fov > 2 * math.pi:
         raise r.fail("fov_deg", "must be at most 360")
+    if spec.fov / spec.resolution > MAX_RAYS:
+        raise r.fail(
+            "resolution_deg", f"gives more than {MAX_RAYS} beams per scan (fov / resolution)"
+        )
     if spec.min_range >= spec.max_range:
         raise r.fail("min_range", "must be less than max_range")
     r.finish()
@@ -199,8 +207,8 @@ def _camera(cr: FieldReader, cd: dict) -> CameraSpec:
         height=cr.number("height", cd["height"], positive=True),
         pitch=math.radians(cr.number("pitch_deg", cd["pitch_deg"])),
         fov=math.radians(cr.number("fov_deg", cd["fov_deg"], positive=True)),
-        width=cr.integer("width", cd["width"], minimum=16),
-        height_px=cr.integer("height_px", cd["height_px"], minimum=16),
+        width=cr.integer("width", cd["width"], minimum=16, maximum=MAX_PIXELS),
+        height_px=cr.integer("height_px", cd["height_px"], minimum=16, maximum=MAX_PIXELS),
         far=cr.number("far", cd["far"], positive=True),
         yaw=math.radians(cr.number("yaw_deg", cd.get("yaw_deg", 0.0))),
     )
@@ -344,10 +352,22 @@ def _bounds(
             for c in cylinders
         ]
         allc = np.vstack(corners)
-        return allc.min(axis=0) - 0.5, allc.max(axis=0) + 0.5
-    if len(bounds_pts) != 2 or np.any(bounds_pts[1] <= bounds_pts[0]):
-        raise r.fail("bounds", "must be [[x_min, y_min], [x_max, y_max]] with max > min")
-    return bounds_pts[0], bounds_pts[1]
+        lo, hi = allc.min(axis=0) - 0.5, allc.max(axis=0) + 0.5
+        field = "walls"
+    else:
+        if len(bounds_pts) != 2 or np.any(bounds_pts[1] <= bounds_pts[0]):
+            raise r.fail("bounds", "must be [[x_min, y_min], [x_max, y_max]] with max > min")
+        lo, hi = bounds_pts[0], bounds_pts[1]
+        field = "bounds"
+    extent = hi - lo
+    cells = math.prod(math.ceil(e / GRID_RESOLUTION_M) for e in extent)
+    if np.any(extent > MAX_EXTENT_M) or cells > MAX_CELLS:
+        raise r.fail(
+            field,
+            f"the scene spans {extent[0]:g} m x {extent[1]:g} m; at most "
+            f"{MAX_EXTENT_M:g} m x {MAX_EXTENT_M:g} m is allowed",
+        )
+    return lo, hi
 
 
 def _dock(r: FieldReader, source: str, tables: tuple[Table, ...]) -> Dock | None:
@@ -380,7 +400,7 @@ def parse_scenario(data: dict[str, Any], source: str = "<scenario>") -> Scenario
     The file format is described in ``sim/scenarios/FORMAT.md``.
     """
     r = FieldReader(source, data)
-    name = r.string("name")
+    name = check_name(r.string("name"), f"{source}: field 'name'")
     description = r.string("description", "")
     robot, walls, boxes, cylinders, tables = _elements(r)
     lo, hi = _bounds(r, walls, boxes, cylinders, tables)
@@ -412,7 +432,7 @@ def parse_scenario(data: dict[str, Any], source: str = "<scenario>") -> Scenario
                 f"{source}: field '{label}': pose ({pose.x}, {pose.y}) lies outside "
                 f"the bounds {list(map(list, bounds))}"
             )
-    return Scenario(
+    scenario = Scenario(
         name=name,
         description=description,
         source=source,
@@ -428,6 +448,9 @@ def parse_scenario(data: dict[str, Any], source: str = "<scenario>") -> Scenario
         robot=robot,
         semantics=semantics,
     )
+    for field, message in placement_problems(scenario):
+        raise ValueError(f"{source}: field '{field}': {message}")
+    return scenario
 
 
 def load_scenario(name_or_path: str | Path) -> Scenario:
@@ -448,9 +471,7 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
     if not path.is_file():
         raise FileNotFoundError(2, "No such file", str(path))
     try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as error:
-        raise ValueError(f"{path}: not valid TOML: {error}") from None
+        data = loads_toml(path.read_text(encoding="utf-8"), str(path))
     except UnicodeDecodeError:
         raise ValueError(f"{path}: not a UTF-8 text file") from None
     return parse_scenario(data, str(path))

@@ -12,6 +12,7 @@ import pytest
 from sim.check import CheckSettings, check_scene
 from sim.generate import scene_toml
 from sim.scenario import available_scenarios, load_scenario, parse_scenario
+from sim.types import Pose2D
 from tasks.primary import PrimarySettings
 from tests.test_cli_scenario import asa
 
@@ -118,7 +119,18 @@ def test_a_start_inside_an_obstacle_is_named():
     def bury(d):
         d["start"] = {"x": 0.6, "y": 3.4, "yaw_deg": 0.0}
 
-    assert "'crate'" in _only(check_scene(_scene(bury)), "start")
+    # the loader refuses the file (issue 20); a scene built in code gets the checker's line
+    with pytest.raises(ValueError, match=r"^small.toml: field 'start': .*'crate'"):
+        _scene(bury)
+    buried = dataclasses.replace(_scene(), start=Pose2D(0.6, 3.4, 0.0))
+    assert "'crate'" in _only(check_scene(buried), "start")
+
+
+def test_a_footprint_overlapping_an_obstacle_is_named():
+    def touch(d):  # the centre is free, the footprint reaches into the crate
+        d["start"] = {"x": 0.5, "y": 2.95, "yaw_deg": 90.0}
+
+    assert "overlaps 'crate'" in _only(check_scene(_scene(touch)), "start")
 
 
 def test_a_scene_without_dock_or_inspection_gets_the_other_checks():
@@ -152,7 +164,7 @@ def test_a_protocol_naming_a_failing_scene_is_rejected(tmp_path: Path):
     from study.engine.protocol import load_protocol
 
     data = copy.deepcopy(SMALL)
-    data["start"] = {"x": 0.6, "y": 3.4, "yaw_deg": 0.0}
+    data["start"] = {"x": 0.5, "y": 2.95, "yaw_deg": 90.0}  # the footprint touches the crate
     (tmp_path / "broken.toml").write_text(scene_toml(data), encoding="utf-8")
     text = (PROTOCOL_DIR / "pilot.toml").read_text(encoding="utf-8")
     text = text.replace('scenario = "practice_course"', 'scenario = "broken.toml"', 1)

@@ -162,7 +162,7 @@ def test_cli_and_csv_folder(study_db, tmp_path, capsys):
     )
     assert status == 0, err
     assert out.splitlines()[0].endswith("report.html")
-    assert "asa report: reading" in err
+    assert "asa report: read " in err
     export(study_db, tmp_path / "csv")
     status, _, err = run(
         capsys,

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pandas as pd
 
 TABLES: tuple[str, ...] = (
@@ -29,6 +30,8 @@ TABLES: tuple[str, ...] = (
 # [analysis] timeouts: a timed-out main trial's completion time and score are missing
 # ("exclude") or the time limit, a right-censored value ("censor"); docs/decisions.md
 TIMEOUTS: tuple[str, ...] = ("exclude", "censor")
+
+MAX_MAGNITUDE = 1e15  # |x| of any number read from a CSV file: beyond it sums of squares overflow
 
 _JSON = {"participant": ("parameters", "mode_order"), "trial": ("outcome",), "event": ("detail",)}
 
@@ -106,6 +109,22 @@ def read_config(protocol_text: str, *, source: str = "protocol") -> AnalysisConf
         doc = tomllib.loads(protocol_text or "")
     except tomllib.TOMLDecodeError as error:
         raise ValueError(f"{source}: field 'study.protocol_text' is not TOML: {error}") from error
+    except RecursionError:
+        raise ValueError(
+            f"{source}: field 'study.protocol_text' nests arrays or tables too deeply"
+        ) from None
+    try:
+        return _config(doc, source)
+    except (AttributeError, TypeError, ValueError) as error:
+        if str(error).startswith(f"{source}: "):
+            raise
+        raise ValueError(
+            f"{source}: field 'study.protocol_text': a malformed [analysis], [scoring], "
+            f"[modes] or [[phases]] table ({error})"
+        ) from None
+
+
+def _config(doc: dict[str, Any], source: str) -> AnalysisConfig:
     analysis = doc.get("analysis", {}) or {}
     scoring = doc.get("scoring", {}) or {}
     modes = (doc.get("modes", {}) or {}).get("names", []) or []
@@ -168,8 +187,34 @@ def _read_csv_folder(folder: Path) -> dict[str, pd.DataFrame]:
         try:
             tables[name] = pd.read_csv(path, dtype=text_cols, keep_default_na=False, na_values=[""])
         except (pd.errors.ParserError, UnicodeDecodeError) as error:
-            raise ValueError(f"{path}: not a readable CSV ({error})") from error
+            what = " ".join(str(error).split())
+            raise ValueError(f"{path}: not a readable CSV ({what})") from None
+        except pd.errors.EmptyDataError:
+            raise ValueError(f"{path}: empty file; expected a header row") from None
+        _check_numbers(path, name, tables[name])
     return tables
+
+
+def _check_numbers(path: Path, name: str, frame: pd.DataFrame) -> None:
+    """Every cell of a numeric column of the storage schema is empty or a finite number of
+    sane size (``|x| <= MAX_MAGNITUDE``); else ``ValueError`` naming file, column and line."""
+    from study.data.storage import Base
+
+    table = Base.metadata.tables[name]
+    for column in table.columns:
+        if column.name not in frame.columns or column.type.python_type not in (int, float):
+            continue
+        raw = frame[column.name]
+        values = pd.to_numeric(raw, errors="coerce").to_numpy(dtype=float)
+        bad = raw.notna().to_numpy() & ~(np.abs(values) <= MAX_MAGNITUDE)  # NaN: not a number
+        if bad.any():
+            row = int(np.flatnonzero(bad)[0])
+            cell = raw.iloc[row]
+            cell = cell.item() if isinstance(cell, np.generic) else cell
+            raise ValueError(
+                f"{path}: column {column.name!r} line {row + 2}: {cell!r} is not a "
+                f"finite number of size at most {MAX_MAGNITUDE:g}"
+            )
 
 
 def _parse_json(value: Any, where: str) -> Any:

@@ -9,25 +9,38 @@ and add a line to ``COMMANDS``.
 Bad input anywhere (a malformed file, an unknown name, an impossible option)
 is raised as ``ValueError`` (or ``FileNotFoundError``) with the file, field and
 what is allowed; :func:`main` turns it, and click's usage errors, into one line
-on stderr and exit status 2. Any other exception is a bug and keeps its
-traceback. Set ``ASA_DEBUG=1`` to see the traceback of bad input too.
+on stderr and exit status 2. So does a failing disk or file system (full, read-only,
+no permission, an I/O error; also SQLite's "database or disk is full"), naming the file:
+``asa: error: <file>: no space left on device``. Any other exception is a bug and keeps
+its traceback. Set ``ASA_DEBUG=1`` to see the traceback of bad input too.
 """
 
 from __future__ import annotations
 
 import contextlib
+import errno
 import importlib
+import io
 import os
+import sqlite3
 import sys
-from collections.abc import Callable, Iterator
+import traceback
+from collections.abc import Callable, Iterator, Sequence
 from typing import Any, TypeVar
 
 import click
 
+from sim.limits import MAX_COUNT, MAX_PARTICIPANTS, MAX_SEED
 from study import __version__
 from study._blas import limit_blas_threads
 
 F = TypeVar("F", bound=Callable[..., Any])
+# Option types with the platform's bounds (sim.limits), shared by the subcommands.
+SEED = click.IntRange(0, MAX_SEED)  # stored in SQLite's signed 64-bit integer
+PARTICIPANTS = click.IntRange(1, MAX_PARTICIPANTS)
+WORKERS = click.IntRange(1, 1024)
+COUNT = click.IntRange(1, MAX_COUNT)
+ROW_ID = click.IntRange(1, MAX_SEED)
 
 # name -> ("module:attribute", one-line help shown by ``asa --help``)
 COMMANDS: dict[str, tuple[str, str]] = {
@@ -130,6 +143,92 @@ def db_option(help: str, *, name: str = "db") -> Callable[[F], F]:
     return click.option("--db", name, required=True, type=str, metavar="PATH|URL", help=help)
 
 
+# errno values of a failing disk or file system, not of a bug
+_IO_ERRNOS = frozenset(
+    getattr(errno, name)
+    for name in (
+        "ENOSPC", "EDQUOT", "EIO", "EACCES", "EPERM", "EROFS", "EFBIG", "ENOTDIR",
+        "EISDIR", "ENAMETOOLONG", "ENXIO", "ENODEV", "ELOOP", "EMFILE", "ENFILE", "EBUSY",
+        "ETXTBSY", "ESTALE",
+    )
+    if hasattr(errno, name)
+)  # fmt: skip
+# SQLite's messages for the same (sqlite3.OperationalError, often wrapped by SQLAlchemy)
+_SQLITE_IO = (
+    "database or disk is full",
+    "disk i/o error",
+    "attempt to write a readonly database",
+    "unable to open database file",
+)
+
+
+def _chain(error: BaseException) -> list[BaseException]:
+    """``error`` and the exceptions it was raised from or while handling, outermost first."""
+    out: list[BaseException] = []
+    current: BaseException | None = error
+    while current is not None and all(current is not e for e in out):
+        out.append(current)
+        current = current.__cause__ or current.__context__
+    return out
+
+
+def _frames_locals(chain: Sequence[BaseException]) -> Iterator[object]:
+    """The local values of every frame of the chain's tracebacks, innermost frame first."""
+    for error in chain:
+        frames = [frame for frame, _ in traceback.walk_tb(error.__traceback__)]
+        for frame in reversed(frames):
+            yield from list(frame.f_locals.values())
+
+
+def _database_name(chain: Sequence[BaseException], argv: Sequence[str]) -> str:
+    """The SQLite file a failing statement wrote to: from a SQLAlchemy engine or connection
+    in the traceback, else ``--db``, else "the study database"."""
+    try:
+        from sqlalchemy.engine import Connection, Engine
+    except ImportError:  # pragma: no cover - SQLAlchemy is a dependency
+        Connection = Engine = ()  # type: ignore[assignment,misc]  # noqa: N806
+    for value in _frames_locals(chain):
+        if isinstance(value, Connection | Engine):
+            engine = value.engine if isinstance(value, Connection) else value
+            if engine.url.database:
+                return str(engine.url.database)
+    for i, arg in enumerate(argv):
+        if arg == "--db" and i + 1 < len(argv):
+            return argv[i + 1]
+        if arg.startswith("--db="):
+            return arg[len("--db=") :]
+    return "the study database"
+
+
+def _file_name(error: OSError, chain: Sequence[BaseException]) -> str | None:
+    """The file an ``OSError`` concerns: its ``filename``, else an open file in the
+    innermost frames of the traceback (a failing ``write`` names no file)."""
+    if error.filename is not None:
+        return os.fsdecode(error.filename)
+    for value in _frames_locals(chain):
+        if isinstance(value, io.IOBase) and isinstance(getattr(value, "name", None), str):
+            return value.name
+    return None
+
+
+def io_error_line(error: BaseException, argv: Sequence[str] = ()) -> str | None:
+    """One line for a failing disk or file system anywhere in ``error``'s chain, naming the
+    file (``"<file>: no space left on device"``), or ``None`` when it is something else."""
+    chain = _chain(error)
+    for e in chain:
+        if isinstance(e, OSError) and e.errno in _IO_ERRNOS:
+            what = (e.strerror or errno.errorcode.get(e.errno or 0, "I/O error")).lower()
+            name = _file_name(e, chain)
+            return f"{name}: {what}" if name else f"{what} (errno {e.errno})"
+        orig = getattr(e, "orig", None)  # SQLAlchemy's DBAPIError wraps sqlite3's error
+        for candidate in (e, orig):
+            if isinstance(candidate, sqlite3.OperationalError):
+                text = " ".join(str(candidate).split())
+                if any(s in text.lower() for s in _SQLITE_IO):
+                    return f"{_database_name(chain, argv)}: {text}"
+    return None
+
+
 def main(argv: list[str] | None = None) -> None:
     """Entry point of the ``asa`` console script."""
     debug = os.environ.get("ASA_DEBUG") == "1"
@@ -152,3 +251,10 @@ def main(argv: list[str] | None = None) -> None:
     except KeyboardInterrupt:
         click.echo("asa: interrupted", err=True)
         sys.exit(130)
+    except Exception as error:
+        # A full disk, a read-only file system ...: one line naming the file. Else a bug.
+        line = None if debug else io_error_line(error, sys.argv[1:] if argv is None else argv)
+        if line is None:
+            raise
+        click.echo(f"asa: error: {line}", err=True)
+        sys.exit(2)

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import click
 
+from study.cli import COUNT, SEED
 from tasks.contextual import DEMONSTRATED, TASK_TYPES, check_task_type
 
 
@@ -39,7 +40,7 @@ def demonstrations() -> None:
     metavar="NAME",
     help="Scenario name or TOML file (default: the task type's demonstration scene).",
 )
-@click.option("--runs", type=int, default=12, show_default=True, help="Runs per task type.")
+@click.option("--runs", type=COUNT, default=12, show_default=True, help="Runs per task type.")
 @click.option(
     "--out",
     "out",
@@ -48,7 +49,7 @@ def demonstrations() -> None:
     help="Output directory: DIR/<task>/<scene>_run_<k>.npz and DIR/manifest.json "
     "(merged with an existing manifest).",
 )
-@click.option("--seed", type=int, default=0, show_default=True, help="Master seed.")
+@click.option("--seed", type=SEED, default=0, show_default=True, help="Master seed.")
 def record(task: str, scene: str | None, runs: int, out: str, seed: int) -> None:
     """Drive the simulation with a scripted demonstrator and store the trajectories.
 

@@ -17,6 +17,7 @@ from pathlib import Path
 import click
 
 from autonomy.evaluation import format_report
+from study.cli import SEED
 from study.jobs.evaluation import DemonstrationsMismatchError, run_evaluation
 
 _FLAGS = ("folds", "workers", "repeats")  # run_evaluation's parameters that are flags
@@ -85,7 +86,7 @@ class _Progress:
     "shipped model).",
 )
 @click.option("--folds", default=5, show_default=True, type=int, help="Folds, by run.")
-@click.option("--seed", default=0, show_default=True, type=int, help="Seed of the folds etc.")
+@click.option("--seed", default=0, show_default=True, type=SEED, help="Seed of the folds etc.")
 @click.option(
     "--repeats",
     default=1,

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import click
 
-from study.cli import flag_errors
+from study.cli import PARTICIPANTS, SEED, WORKERS, flag_errors
 
 
 @click.command()
@@ -20,18 +20,18 @@ from study.cli import flag_errors
 )
 @click.option(
     "--participants",
-    type=int,
+    type=PARTICIPANTS,
     default=18,
     show_default=True,
     help="Synthetic participants (the thesis had 18).",
 )
 @click.option(
     "--workers",
-    type=int,
+    type=WORKERS,
     default=None,
     help="Worker processes; default the number of CPUs.",
 )
-@click.option("--seed", type=int, default=0, show_default=True, help="The pilot's seed.")
+@click.option("--seed", type=SEED, default=0, show_default=True, help="The pilot's seed.")
 @click.option(
     "--protocol",
     default="thesis-7-6",

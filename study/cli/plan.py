@@ -9,7 +9,7 @@ from pathlib import Path
 
 import click
 
-from study.cli import flag_errors
+from study.cli import PARTICIPANTS, SEED, flag_errors
 from study.jobs.plan import format_ledger, format_plan, ledger, plan
 
 
@@ -30,13 +30,13 @@ from study.jobs.plan import format_ledger, format_plan, ledger, plan
 )
 @click.option(
     "--participants",
-    type=int,
+    type=PARTICIPANTS,
     default=None,
     help="Number of participants [default: the protocol's study.participants].",
 )
 @click.option(
     "--seed",
-    type=int,
+    type=SEED,
     default=None,
     help="Seed of the random scheme [default: the protocol's study.seed].",
 )

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import click
 
-from study.cli import db_option
+from study.cli import ROW_ID, db_option
 
 
 @click.command()
@@ -15,7 +15,7 @@ from study.cli import db_option
 @click.option(
     "--trial",
     required=True,
-    type=int,
+    type=ROW_ID,
     help="The trial's row id in the database (trial.id, as in `asa export`); "
     "an unknown id lists the participant's trials.",
 )

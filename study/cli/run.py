@@ -29,7 +29,7 @@ from typing import Any
 
 import click
 
-from study.cli import db_option
+from study.cli import SEED, db_option
 
 INPUTS = ("scripted", "human", "synthetic")  # study.engine.launch.INPUTS
 # the library's errors name run_session's parameters; the experimenter types flags
@@ -55,7 +55,7 @@ SCREEN_STATUS_EVERY_S = 1.0  # [s] wall time between the screen's status lines
 )
 @click.option(
     "--seed",
-    type=click.IntRange(min=0),
+    type=SEED,
     default=None,
     help="Participant seed (default: derived from the study seed and the code).",
 )

@@ -15,6 +15,7 @@ from pathlib import Path
 import click
 
 from sim.semantics import derive_components
+from study.cli import SEED
 from study.jobs.scenes import (
     check,
     describe,
@@ -150,7 +151,7 @@ def check_command(name_or_file: str) -> None:
 
 
 @scenario.command("generate")
-@click.option("--seed", type=click.IntRange(min=0), required=True, help="Random seed (>= 0).")
+@click.option("--seed", type=SEED, required=True, help="Random seed (>= 0).")
 @click.option(
     "--rooms", type=click.IntRange(3, 6), default=None, help="Rooms in the chain (3-6; drawn)."
 )

@@ -13,21 +13,21 @@ from pathlib import Path
 
 import click
 
-from study.cli import db_option, flag_errors
+from study.cli import PARTICIPANTS, SEED, WORKERS, db_option, flag_errors
 
 
 @click.command("synth")
 @click.option("--protocol", required=True, help="Shipped protocol name or TOML file.")
 @click.option(
     "--participants",
-    type=int,
+    type=PARTICIPANTS,
     default=None,
     help="How many synthetic participants (P01..PNN); default the protocol's number.",
 )
-@click.option("--seed", type=int, default=0, show_default=True, help="The synthetic study's seed.")
+@click.option("--seed", type=SEED, default=0, show_default=True, help="The synthetic study's seed.")
 @click.option(
     "--workers",
-    type=int,
+    type=WORKERS,
     default=None,
     help="Worker processes; default the number of CPUs.",
 )

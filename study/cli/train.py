@@ -13,7 +13,7 @@ from pathlib import Path
 import click
 
 from autonomy.training import format_summary
-from study.cli import flag_errors
+from study.cli import SEED, flag_errors
 from study.jobs.training import train_model
 
 
@@ -36,7 +36,7 @@ from study.jobs.training import train_model
     "--seed",
     default=0,
     show_default=True,
-    type=int,
+    type=SEED,
     help="Seed of every random choice in training.",
 )
 @click.option("--force", is_flag=True, help="Overwrite --out if it exists.")

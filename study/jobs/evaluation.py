@@ -147,16 +147,16 @@ def run_evaluation(
     ------
     ValueError
         Unreadable demonstrations or model file (naming the file and field), ``folds``
-        outside [2, number of runs], ``workers`` or ``repeats`` below 1 (checked first,
-        before any demonstrations are recorded).
+        outside [2, number of runs], ``workers`` outside 1..1024 or ``repeats`` outside
+        1..1000 (checked first, before any demonstrations are recorded).
     """
     from study.jobs.demonstrations import load_demonstrations
     from tasks.contextual import TARGET_KIND
 
-    if workers < 1:
-        raise ValueError(f"workers: must be at least 1, got {workers}")
-    if repeats < 1:
-        raise ValueError(f"repeats: must be at least 1, got {repeats}")
+    if not 1 <= workers <= 1024:
+        raise ValueError(f"workers: must be at least 1 and at most 1024, got {workers}")
+    if not 1 <= repeats <= 1000:
+        raise ValueError(f"repeats: must be at least 1 and at most 1000, got {repeats}")
     settings = EvaluationSettings(folds=folds, seed=seed)
     model_path = Path(DEFAULT_MODEL if model is None else model)
     metadata = load_model(model_path).metadata

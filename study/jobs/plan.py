@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 from sqlalchemy.orm import Session
 
+from sim.limits import MAX_PARTICIPANTS, MAX_SEED
 from study.data.ledger import entries
 from study.data.storage import get_study, open_database
 from study.engine.counterbalance import assign_indexed, balance
@@ -44,11 +45,11 @@ def plan(
     """
     p = load_protocol(protocol)
     n = p.study.participants if participants is None else participants
-    if isinstance(n, bool) or not isinstance(n, int) or n < 1:
-        raise ValueError(f"participants: must be an integer >= 1, got {n!r}")
+    if isinstance(n, bool) or not isinstance(n, int) or not 1 <= n <= MAX_PARTICIPANTS:
+        raise ValueError(f"participants: must be an integer in 1..{MAX_PARTICIPANTS}, got {n!r}")
     seed = p.study.seed if seed is None else seed
-    if seed < 0:
-        raise ValueError(f"seed: must be zero or positive, got {seed}")
+    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed <= MAX_SEED:
+        raise ValueError(f"seed: must be an integer in 0..{MAX_SEED}, got {seed!r}")
     rows = assign_indexed(p.modes, n, p.counterbalancing, rng=np.random.default_rng(seed))
     check = balance([modes for _, modes in rows], scheme=p.counterbalancing)
     return {

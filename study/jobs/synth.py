@@ -25,6 +25,7 @@ from sqlalchemy import select
 from sqlalchemy.engine import Connection, Engine
 from sqlalchemy.orm import Session
 
+from sim.limits import MAX_PARTICIPANTS, MAX_SEED
 from study.data import identity, locks
 from study.data.dbtools import remove_recordings_of
 from study.data.merge import merge_participant, table_rows
@@ -120,18 +121,18 @@ def _run_job(job: _Job) -> _Done:
 # ------------------------------------------------------------------------- the study
 
 
-def _check_int(value: Any, field: str, minimum: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
-        raise ValueError(f"{field}: must be an integer >= {minimum}, got {value!r}")
+def _check_int(value: Any, field: str, minimum: int, maximum: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or not minimum <= value <= maximum:
+        raise ValueError(f"{field}: must be an integer in {minimum}..{maximum}, got {value!r}")
     return value
 
 
 def _check_options(
     participants: Any, seed: Any, workers: Any, db: str | Path
 ) -> tuple[int, int, int]:
-    n = _check_int(participants, "participants", 1)
-    seed = _check_int(seed, "seed", 0)
-    workers = _check_int(workers, "workers", 1)
+    n = _check_int(participants, "participants", 1, MAX_PARTICIPANTS)
+    seed = _check_int(seed, "seed", 0, MAX_SEED)
+    workers = _check_int(workers, "workers", 1, 1024)
     if "://" in str(db):
         raise ValueError(f"db: a SQLite file path is needed for synthetic studies, got {db}")
     return n, seed, workers

@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import hashlib
 import itertools
-import tomllib
 from collections.abc import Collection, Mapping
 from pathlib import Path
 from typing import Any
@@ -33,7 +32,8 @@ from protocols import PROTOCOL_DIR, available
 from questionnaires import nasa_tlx
 from sim.check import check_scene
 from sim.fields import FieldReader
-from sim.scenario import Scenario, load_scenario
+from sim.limits import MAX_DURATION_S, MAX_PARTICIPANTS, MAX_SEED, loads_toml, short_repr
+from sim.scenario import MAX_PIXELS, Scenario, load_scenario
 from study.engine.counterbalance import SCHEMES
 from study.engine.protocol.interface import input_settings, protocol_words, template, ui_settings
 from study.engine.protocol.readers import boolean as _boolean
@@ -68,6 +68,10 @@ from study.engine.protocol.types import (
     Training,
 )
 from tasks.secondary import SecondarySettings
+
+MAX_QUESTIONS = 1_000  # questions of a block, a baseline or a rehearsal
+MAX_ATTEMPTS = 100  # practice attempts, collisions allowed in one
+MAX_OFFSET = 1_000  # size of a near-miss offset of the secondary task's shown answer
 
 
 class _Scenarios:
@@ -120,7 +124,11 @@ def _first_problem(scenario: Scenario) -> str | None:
 
 def _training(r: FieldReader, modes: tuple[str, ...], scenarios: _Scenarios) -> Training:
     name, scenario = scenarios.get(r, "scenario")
-    duration = r.number("duration_s", positive=True) if "duration_s" in r.data else None
+    duration = (
+        r.number("duration_s", positive=True, maximum=MAX_DURATION_S)
+        if "duration_s" in r.data
+        else None
+    )
     secondary = _boolean(r, "secondary", True)
     if secondary and len(scenario.question_region) < 3:
         raise r.fail("secondary", f"scenario {name!r} has no question region")
@@ -130,7 +138,7 @@ def _training(r: FieldReader, modes: tuple[str, ...], scenarios: _Scenarios) -> 
         secondary=secondary,
         direct_view=_boolean(r, "direct_view", True),
         modes=_string_list(r, "modes", list(modes), allowed=modes),
-        rehearsal_questions=r.integer("rehearsal_questions", 0, minimum=0),
+        rehearsal_questions=r.integer("rehearsal_questions", 0, minimum=0, maximum=MAX_QUESTIONS),
     )
     if not phase.modes:
         raise r.fail("modes", "must name at least one of the protocol's modes")
@@ -149,9 +157,9 @@ def _practice(r: FieldReader, scenarios: _Scenarios) -> Practice:
         raise r.fail("secondary", f"scenario {name!r} has no question region")
     phase = Practice(
         scenario=name,
-        time_limit_s=r.number("time_limit_s", positive=True),
-        max_collisions=r.integer("max_collisions", 0, minimum=0),
-        max_attempts=r.integer("max_attempts", 3, minimum=1),
+        time_limit_s=r.number("time_limit_s", positive=True, maximum=MAX_DURATION_S),
+        max_collisions=r.integer("max_collisions", 0, minimum=0, maximum=MAX_ATTEMPTS),
+        max_attempts=r.integer("max_attempts", 3, minimum=1, maximum=MAX_ATTEMPTS),
         secondary=secondary,
         order=r.string("order", "assigned", allowed=PRACTICE_ORDERS),
         on_fail=r.string("on_fail", "exclude", allowed=ON_FAIL),
@@ -192,9 +200,9 @@ def _main(r: FieldReader, scenarios: _Scenarios) -> MainTrials:
         scenario=name,
         route=route,
         inspection=inspection,
-        timeout_s=r.number("timeout_s", 900.0, positive=True),
+        timeout_s=r.number("timeout_s", 900.0, positive=True, maximum=MAX_DURATION_S),
         secondary=secondary,
-        block_size=r.integer("block_size", 20, minimum=1),
+        block_size=r.integer("block_size", 20, minimum=1, maximum=MAX_QUESTIONS),
         end_on_collision=_boolean(r, "end_on_collision", False),
         after_trial=after,
     )
@@ -233,7 +241,9 @@ def _phases(r: FieldReader, modes: tuple[str, ...], scenarios: _Scenarios) -> tu
         elif kind == "practice":
             phase = _practice(pr, scenarios)
         elif kind == "baseline":
-            phase = Baseline(questions=pr.integer("questions", 40, minimum=1))
+            phase = Baseline(
+                questions=pr.integer("questions", 40, minimum=1, maximum=MAX_QUESTIONS)
+            )
             pr.finish()
         elif kind == "main":
             phase = _main(pr, scenarios)
@@ -253,16 +263,24 @@ def _secondary(r: FieldReader) -> SecondarySettings:
             raise r.fail(key, f"is set in the {place!r} phase, as '{where}'")
     d = SecondarySettings()
     offsets = _raw(r, "near_miss_offsets", list(d.near_miss_offsets))
-    if not isinstance(offsets, list):
-        raise r.fail("near_miss_offsets", f"must be a list of integers, got {offsets!r}")
-    try:
-        s = SecondarySettings(
-            p_correct=r.number("p_correct", d.p_correct),
-            timeout_s=r.number("timeout_s", d.timeout_s),
-            gap_s=r.number("gap_s", d.gap_s),
-            near_miss_offsets=tuple(offsets),
-            p_addition=r.number("p_addition", d.p_addition),
+    if (
+        not isinstance(offsets, list)
+        or len(offsets) > MAX_QUESTIONS
+        or any(isinstance(o, int) and abs(o) > MAX_OFFSET for o in offsets)
+    ):
+        raise r.fail(
+            "near_miss_offsets",
+            f"must be a list of at most {MAX_QUESTIONS} integers of size at most "
+            f"{MAX_OFFSET}, got {short_repr(offsets)}",
         )
+    values = {
+        "p_correct": r.number("p_correct", d.p_correct),
+        "timeout_s": r.number("timeout_s", d.timeout_s, maximum=MAX_DURATION_S),
+        "gap_s": r.number("gap_s", d.gap_s, maximum=MAX_DURATION_S),
+        "p_addition": r.number("p_addition", d.p_addition),
+    }
+    try:
+        s = SecondarySettings(near_miss_offsets=tuple(offsets), **values)
     except ValueError as error:  # "SecondarySettings.<field>: <message>"
         key, _, message = str(error).removeprefix("SecondarySettings.").partition(": ")
         raise r.fail(key, message) from None
@@ -310,7 +328,7 @@ def _recording(r: FieldReader) -> RecordingSettings:
         raise r.fail("jpeg_quality", f"must lie in 1..100, got {quality!r}")
     s = RecordingSettings(
         camera_hz=float(camera_hz),
-        camera_width=r.integer("camera_width", d.camera_width, minimum=16),
+        camera_width=r.integer("camera_width", d.camera_width, minimum=16, maximum=MAX_PIXELS),
         jpeg_quality=quality,
     )
     r.finish()
@@ -357,15 +375,19 @@ def _study(r: FieldReader) -> StudyInfo:
         name=_text(r, "name"),
         title=r.string("title", ""),
         description=r.string("description", ""),
-        participants=r.integer("participants", 18, minimum=1),
-        seed=r.integer("seed", 0, minimum=0),
+        participants=r.integer("participants", 18, minimum=1, maximum=MAX_PARTICIPANTS),
+        seed=r.integer("seed", 0, minimum=0, maximum=MAX_SEED),
     )
     r.finish()
     return study
 
 
 def _scoring(r: FieldReader) -> Scoring:
-    scoring = Scoring(collision_penalty_s=r.number("collision_penalty_s", 60.0, non_negative=True))
+    scoring = Scoring(
+        collision_penalty_s=r.number(
+            "collision_penalty_s", 60.0, non_negative=True, maximum=MAX_DURATION_S
+        )
+    )
     r.finish()
     return scoring
 
@@ -397,10 +419,7 @@ def parse_protocol(
     ValueError
         Malformed TOML or any bad field, naming ``source`` and the field.
     """
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as error:
-        raise ValueError(f"{source}: not valid TOML: {error}") from None
+    data = loads_toml(text, source)
     known = available_modes() if known_modes is None else known_modes
     if base is None:
         base = Path(source).parent if Path(source).is_file() else Path.cwd()

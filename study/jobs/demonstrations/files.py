@@ -146,7 +146,8 @@ def _load_run(path: Path, entry: dict[str, Any]) -> dict[str, np.ndarray]:
             f"manifest's {str(entry['sha256'])[:12]}... (file changed or corrupted)"
         )
     try:
-        with np.load(path, allow_pickle=False) as data:
+        # our own handle: np.load leaves its file open when the archive is corrupt
+        with open(path, "rb") as handle, np.load(handle, allow_pickle=False) as data:
             arrays = {name: data[name] for name in data.files}
     except Exception as error:  # zipfile, format or pickle errors all mean a bad file
         raise ValueError(f"{path}: not a readable .npz file ({error})") from None
