@@ -76,10 +76,13 @@ def metric_figure(long: pd.DataFrame, metric: Metric, modes: tuple[str, ...]) ->
     levels = list(dict.fromkeys(long["mode"]))
     x = np.arange(len(levels))
     stats = long.groupby("mode", sort=False)["value"].agg(["mean", "std"]).reindex(levels)
+    mean, sd = stats["mean"].to_numpy(), stats["std"].fillna(0.0).to_numpy()
+    # a metric that cannot be negative (counts, times, ratings) gets no whisker below 0
+    low = np.minimum(sd, np.maximum(mean, 0.0)) if (long["value"].dropna() >= 0).all() else sd
     ax.bar(
         x,
-        stats["mean"].to_numpy(),
-        yerr=stats["std"].fillna(0.0).to_numpy(),
+        mean,
+        yerr=np.vstack((low, sd)),
         color=[_colour(lv, modes) for lv in levels],
         alpha=0.8,
         capsize=5,
@@ -231,9 +234,16 @@ def paths_figure(
     background: tuple[np.ndarray, tuple[float, float, float, float]] | None = None,
 ) -> Figure:
     """Every counted trial's path (x, y) in one panel per mode, on the map ``background``
-    (:func:`read_map`) when given; start o, end x."""
-    fig = _figure(4.0 * max(len(modes), 1), 4.0, left=0.06, bottom=0.12, wspace=0.15)
-    axes = np.atleast_1d(fig.subplots(1, max(len(modes), 1), sharex=True, sharey=True))
+    (:func:`read_map`) when given; two panels a row, each 6 in wide, so a page shows the
+    scene's detail; the start a green triangle, the end a red cross (a route back to its
+    start ends where it began: the two stay apart by shape and colour)."""
+    n = max(len(modes), 1)
+    cols = min(n, 2)
+    rows = int(np.ceil(n / cols))
+    fig = _figure(6.0 * cols, 6.0 * rows, left=0.06, bottom=0.06, wspace=0.12, hspace=0.15)
+    axes = np.atleast_1d(fig.subplots(rows, cols, sharex=True, sharey=True)).ravel()
+    for ax in axes[n:]:
+        ax.set_visible(False)
     grouped = {int(k): g for k, g in samples.groupby("trial_id")} if len(samples) else {}
     for ax, mode in zip(axes, modes, strict=False):
         if background is not None:
@@ -247,12 +257,18 @@ def paths_figure(
             g = g.sort_values("tick")
             step = max(1, int(np.ceil(len(g) / MAX_PATH_POINTS)))
             x, y = g["x"].to_numpy()[::step], g["y"].to_numpy()[::step]
-            ax.plot(x, y, color=_colour(mode, modes), alpha=0.45, linewidth=0.9)
-            ax.plot(g["x"].iloc[0], g["y"].iloc[0], "o", color="black", markersize=3)
-            ax.plot(g["x"].iloc[-1], g["y"].iloc[-1], "x", color="black", markersize=4)
+            ax.plot(x, y, color=_colour(mode, modes), alpha=0.45, linewidth=1.0)
+            ax.plot(g["x"].iloc[0], g["y"].iloc[0], "^", color="#1a9641", markersize=8,
+                    markeredgecolor="white", label="start")  # fmt: skip
+            ax.plot(g["x"].iloc[-1], g["y"].iloc[-1], "X", color="#d7191c", markersize=8,
+                    markeredgecolor="white", label="end")  # fmt: skip
+        handles, labels = ax.get_legend_handles_labels()
+        if handles:
+            unique = dict(zip(labels, handles, strict=True))
+            ax.legend(unique.values(), unique.keys(), fontsize=8, loc="best")
         ax.set_title(mode)
         ax.set_aspect("equal", adjustable="box")
         ax.set_xlabel("x [m]")
+        ax.set_ylabel("y [m]")
         ax.grid(alpha=0.3)
-    axes[0].set_ylabel("y [m]")
     return fig

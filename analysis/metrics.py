@@ -36,6 +36,8 @@ class Metric:
     description : one sentence for the report.
     descriptive : described per mode, never tested: no repeated-measures ANOVA (the
         recognition metric exists for the modes with task recognition only, one level).
+    zero_in : levels in which the metric is 0 by construction (no assistance in manual
+        control): described in Table 1, left out of the test.
     """
 
     name: str
@@ -45,6 +47,7 @@ class Metric:
     lower_is_better: bool | None = True
     description: str = ""
     descriptive: bool = False
+    zero_in: tuple[str, ...] = ()
 
 
 _TLX_SUBSCALES = tuple(
@@ -109,6 +112,7 @@ METRICS: tuple[Metric, ...] = (
         "assistance",
         lower_is_better=None,
         description="Share of ticks with assistance weight beta > 0.05.",
+        zero_in=("manual",),
     ),
     Metric(
         "beta_mean",
@@ -116,6 +120,7 @@ METRICS: tuple[Metric, ...] = (
         "assistance",
         lower_is_better=None,
         description="Mean assistance weight beta over the trial's ticks.",
+        zero_in=("manual",),
     ),
     Metric(
         "secondary_answer_time_s",

@@ -27,6 +27,7 @@ from analysis import figures as fig
 from analysis.data import BASELINE, AnalysisConfig, Frames, StudyData, load_study, tidy
 from analysis.methods import methods, methods_markdown
 from analysis.metrics import BY_NAME, Metric, long_frame, ordered_metrics
+from analysis.presentation import GLOSSARY, synthetic_banner, table_one, without_constant_levels
 from analysis.recognition import describe, html_rows, recognition_tables
 from analysis.stats import analyse
 from analysis.tables import apa_anova, format_p
@@ -105,14 +106,14 @@ def _experience_summary(frames: Frames, counted: set[str]) -> dict | None:
     }
 
 
-def _pair_rows(pairs: list[dict]) -> list[dict]:
+def _pair_rows(pairs: list[dict], alpha: float) -> list[dict]:
     return [
         {
             "pair": f"{p['a']} - {p['b']}",
             "diff": _fmt(p["diff"], 3),
             "t": _fmt(p["t"]),
             "df": _fmt(p["df"], 0) if float(p["df"]).is_integer() else _fmt(p["df"]),
-            "p": format_p(p["p"]),
+            "p": format_p(p["p"], alpha=alpha),
             "ci": f"[{_fmt(p['ci_low'], 3)}, {_fmt(p['ci_high'], 3)}]",
             "significant": p["significant"],
         }
@@ -175,23 +176,33 @@ def _sections(
     progress: Callable[[str], None],
     written: _Written,
     only: tuple[str, ...] | None,
-) -> tuple[list[dict], list[dict], dict]:
-    """Per metric the template's section, the metrics skipped (and why), the results."""
+) -> tuple[list[dict], list[dict], dict, dict]:
+    """Per metric the template's section, the metrics skipped (and why), the results,
+    and the planned metrics' long frames (for Table 1)."""
     cfg = data.config
-    sections, skipped, results = [], [], {}
+    sections, skipped, results, longs = [], [], {}, {}
     for metric in ordered_metrics(cfg.metrics):
         if metric.descriptive or (only is not None and metric.name not in only):
             continue
         long = long_frame(frames, metric, baseline=cfg.secondary_baseline_level)
         planned = metric.name in cfg.metrics
-        result, reason = _analyse_metric(long, cfg)
+        if planned:
+            longs[metric.name] = (metric, long)
+        tested, constant = without_constant_levels(metric, long)
+        result, reason = _analyse_metric(tested, cfg)
         if result is None:
             skipped.append({"name": metric.name, "planned": planned, "reason": reason})
             continue
-        progress(f"metric {metric.name}: {apa_anova(result)}")
+        if constant:
+            result["warnings"] = [
+                *result["warnings"],
+                f"{', '.join(constant)} left out of the test: 0 by construction "
+                "(described in Table 1)",
+            ]
+        progress(f"metric {metric.name}: {apa_anova(result, alpha=cfg.alpha)}")
         results[metric.name] = result
         sections.append(_section(metric, planned, long, result, frames, cfg, out, written))
-    return sections, skipped, results
+    return sections, skipped, results, longs
 
 
 def _section(
@@ -220,19 +231,21 @@ def _section(
         "metric": metric,
         "planned": planned,
         "result": result,
-        "apa": apa_anova(result),
+        "apa": apa_anova(result, alpha=cfg.alpha),
         "svg": Markup(svg_text),
         "png_name": png.name,
         "svg_name": svg.name,
         "descriptives": _descriptive_rows(result),
         "lead": cfg.posthoc,
-        "lead_pairs": _pair_rows(result["posthoc"][cfg.posthoc]),
+        "lead_pairs": _pair_rows(result["posthoc"][cfg.posthoc], cfg.alpha),
         "other": other,
-        "other_pairs": _pair_rows(result["posthoc"][other]),
+        "other_pairs": _pair_rows(result["posthoc"][other], cfg.alpha),
         "notes": notes,
         "sphericity": result["sphericity"],
         "gg": result["greenhouse_geisser"],
-        "p_gate": format_p(result["p_gate"]),
+        "p_gate": format_p(result["p_gate"], alpha=cfg.alpha),
+        "p_unc": format_p(result["anova"]["p_unc"], alpha=cfg.alpha),
+        "mauchly_p": format_p(result["sphericity"]["p"], alpha=0.05),  # Mauchly's alpha
         "anova": result["anova"],
     }
 
@@ -349,7 +362,12 @@ def build_report(
     (out / "figures").mkdir(parents=True, exist_ok=True)
     written = _Written(figures=[], tables=[])
     positions, orders = _write_frames(frames, out / "tables", written)
-    sections, skipped, results = _sections(data, frames, out, say, written, metrics)
+    sections, skipped, results, longs = _sections(data, frames, out, say, written, metrics)
+    levels = list(frames.modes) + sorted(
+        {lv for _, lg in longs.values() for lv in lg["mode"]} - set(frames.modes)
+    )
+    table1 = table_one(longs, levels)
+    written.csv(table1, out / "tables" / "table1.csv")
     recognition = _recognition(frames, out / "tables", say, written, metrics)
     if not results and not recognition:
         raise ValueError(
@@ -366,7 +384,17 @@ def build_report(
     section = methods(data, frames)
     (out / "methods.md").write_text(methods_markdown(section), encoding="utf-8")
     html = _render_html(
-        data, frames, positions, orders, sections, skipped, extra, recognition, section, crash
+        data,
+        frames,
+        positions,
+        orders,
+        sections,
+        skipped,
+        extra,
+        recognition,
+        section,
+        crash,
+        table1=table1,
     )
     html_path = out / "report.html"
     html_path.write_text(html, encoding="utf-8")
@@ -511,6 +539,8 @@ def _render_html(
     recognition: dict | None,
     section: dict,
     crash: dict | None = None,
+    *,
+    table1: pd.DataFrame,
 ) -> str:
     """``templates/report.html.j2`` rendered with the study's values."""
     counted = set(frames.trials["participant"])
@@ -534,6 +564,10 @@ def _render_html(
         n=len(counted),
         n_complete=int(frames.participants["complete"].sum()),
         kinds=kinds.value_counts().to_dict(),
+        banner=synthetic_banner(kinds.value_counts().to_dict()),
+        table1=table1.to_dict("records"),
+        table1_levels=[c for c in table1.columns if c not in ("metric", "label", "n", "note")],
+        glossary=GLOSSARY,
         experience=_experience_summary(frames, counted),
         modes=frames.modes,
         positions=positions,

@@ -166,13 +166,22 @@ def _no_leading_zero(text: str) -> str:
     return text
 
 
-def format_p(p: float | None) -> str:
-    """APA p: ``"< .001"``, ``"= .026"``, or ``"n/a"`` when undefined (None or NaN)."""
+def format_p(p: float | None, *, alpha: float | None = None) -> str:
+    """APA p: ``"< .001"``, ``"= .026"``, or ``"n/a"`` when undefined (None or NaN).
+
+    With ``alpha``, a p that three decimals would round across it (0.0496 to ".050", which
+    reads as not below alpha = .05) gets the decimals that keep it on its side:
+    ``"= .0496"``. Significance is always decided on the unrounded value."""
     if p is None or not math.isfinite(p):
         return "n/a"
     if p < 0.001:
         return "< .001"
-    return "= " + _no_leading_zero(f"{p:.3f}")
+    digits = 3
+    # a printed "= .050" reads as not below alpha = .05: more decimals while the rounded
+    # value would read on the other side of alpha than the unrounded one is
+    while alpha is not None and digits < 8 and (round(p, digits) < alpha) != (p < alpha):
+        digits += 1
+    return "= " + _no_leading_zero(f"{p:.{digits}f}")
 
 
 def _num(value: float | None, digits: int = 2, *, zero: bool = True) -> str:
@@ -188,13 +197,14 @@ def _uses_gg(result: dict) -> bool:
     return result["p_gate_source"] == "greenhouse_geisser" and eps is not None and eps < 1.0
 
 
-def apa_anova(result: dict) -> str:
+def apa_anova(result: dict, *, alpha: float | None = None) -> str:
     """The APA line of one analysis, e.g. ``"F(2, 34) = 25.76, p < .001, eta_p^2 = .60"``.
 
     Parameters
     ----------
     result : dict
         The object of :func:`analysis.stats.analyse`.
+    alpha : the significance level, for p near it (:func:`format_p`).
 
     Returns
     -------
@@ -212,7 +222,7 @@ def apa_anova(result: dict) -> str:
     else:
         dfs, suffix = f"{df1}, {df2}", ""
     return (
-        f"F({dfs}) = {anova['F']:.2f}, p {format_p(result['p_gate'])}, "
+        f"F({dfs}) = {anova['F']:.2f}, p {format_p(result['p_gate'], alpha=alpha)}, "
         f"eta_p^2 = {_num(anova['np2'], zero=False)}{suffix}"
     )
 
