@@ -15,6 +15,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from analysis.stats.apa import _no_leading_zero, format_p
+
 __all__ = ["SameColumnError", "apa_anova", "format_p", "format_summary", "read_long_csv"]
 
 
@@ -23,7 +25,9 @@ class SameColumnError(ValueError):
     different columns (a ``ValueError``; the CLI words it with its flags)."""
 
 
-def read_long_csv(path: str | Path, *, dv: str, within: str, subject: str) -> pd.DataFrame:
+def read_long_csv(
+    path: str | Path, *, dv: str, within: str, subject: str, order: str | None = None
+) -> pd.DataFrame:
     """Read and validate a long-format CSV: one row per subject and level.
 
     Parameters
@@ -32,12 +36,15 @@ def read_long_csv(path: str | Path, *, dv: str, within: str, subject: str) -> pd
         The CSV file (comma-separated, UTF-8, header row).
     dv, within, subject : str
         Columns holding the dependent variable, the within-subject factor and the subject id.
+    order : str, optional
+        Column holding each row's position in the subject's order of levels (1 = first).
 
     Returns
     -------
     pandas.DataFrame
-        Columns ``subject`` and ``within`` as str, ``dv`` as float64 (NaN = missing), in file
-        order, under their original names; the index is the file's line number.
+        Columns ``subject`` and ``within`` as str, ``dv`` as float64 (NaN = missing) and
+        ``order`` as float64 when given, in file order, under their original names; the
+        index is the file's line number.
 
     Raises
     ------
@@ -51,9 +58,12 @@ def read_long_csv(path: str | Path, *, dv: str, within: str, subject: str) -> pd
     path = Path(path)
     raw = _read_raw(path)
     _check_roles(path, [str(c) for c in raw.columns], dv=dv, within=within, subject=subject)
+    if order is not None:
+        _check_order_role(path, [str(c) for c in raw.columns], order, (dv, within, subject))
     for column in (subject, within):
         _check_ids(path, raw, column)
     values = _dv_values(path, raw, dv)
+    positions = _positions(path, raw, order, observed=values.notna()) if order else None
     levels = list(pd.unique(raw[within].str.strip()))
     if len(levels) < 2:
         found = ", ".join(repr(level) for level in levels) or "none"
@@ -61,7 +71,7 @@ def read_long_csv(path: str | Path, *, dv: str, within: str, subject: str) -> pd
             f"{path}: column {within!r}: only {len(levels)} level ({found}); a "
             f"repeated-measures ANOVA needs at least two"
         )
-    return pd.DataFrame(
+    frame = pd.DataFrame(
         {
             subject: raw[subject].str.strip(),
             within: raw[within].str.strip(),
@@ -69,6 +79,35 @@ def read_long_csv(path: str | Path, *, dv: str, within: str, subject: str) -> pd
         },
         index=raw.index,
     )
+    if positions is not None:
+        frame[order] = positions
+    return frame
+
+
+def _check_order_role(path: Path, columns: list[str], order: str, others: tuple) -> None:
+    if order not in columns:
+        available = ", ".join(repr(c) for c in columns)
+        raise ValueError(
+            f"{path}: column {order!r} (order) not found; available columns: {available}"
+        )
+    if order in others:
+        raise ValueError(
+            f"{path}: the order column {order!r} is also the dv, within or subject column"
+        )
+
+
+def _positions(path: Path, raw: pd.DataFrame, order: str, *, observed: pd.Series) -> pd.Series:
+    """The order column as numbers; a row with a dv value needs a finite position."""
+    text = raw[order].str.strip()
+    values = pd.to_numeric(text, errors="coerce").astype(float)
+    bad = (values.isna() | np.isinf(values)) & observed
+    if bad.any():
+        line = int(raw.index[np.flatnonzero(bad.to_numpy())[0]])
+        raise ValueError(
+            f"{path}: column {order!r} line {line}: {raw.loc[line, order]!r} is not a position "
+            f"(a number: 1 for the level the subject had first, 2 for the second, ...)"
+        )
+    return values
 
 
 def _read_raw(path: Path) -> pd.DataFrame:
@@ -147,23 +186,6 @@ def _dv_values(path: Path, raw: pd.DataFrame, dv: str) -> pd.Series:
 # --------------------------------------------------------------------------------------------
 # Text
 # --------------------------------------------------------------------------------------------
-
-
-def _no_leading_zero(text: str) -> str:
-    if text.startswith("0."):
-        return text[1:]
-    if text.startswith("-0."):
-        return "-" + text[2:]
-    return text
-
-
-def format_p(p: float | None) -> str:
-    """APA p: ``"< .001"``, ``"= .026"``, or ``"n/a"`` when undefined (None or NaN)."""
-    if p is None or not math.isfinite(p):
-        return "n/a"
-    if p < 0.001:
-        return "< .001"
-    return "= " + _no_leading_zero(f"{p:.3f}")
 
 
 def _num(value: float | None, digits: int = 2, *, zero: bool = True) -> str:

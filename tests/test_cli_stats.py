@@ -32,6 +32,17 @@ KEYS = {
     "posthoc",
     "warnings",
     "dropped_subjects",
+    # issue 21
+    "planned",
+    "posthoc_planned",
+    "posthoc_warning",
+    "effect_sizes",
+    "pairs",
+    "assumptions",
+    "friedman",
+    "mixed",
+    "order",
+    "apa",
 }
 
 
