@@ -24,6 +24,7 @@ from study.engine.protocol import (
     GATES,
     PHASE_KINDS,
     POSTHOC,
+    TESTS,
     TIMEOUTS,
     Baseline,
     Practice,
@@ -326,7 +327,8 @@ def test_analysis_choices_match_the_analysis_package():
 
     assert GATES == stats.GATES
     assert TIMEOUTS == analysis_data.TIMEOUTS
-    assert all(callable(getattr(stats, name)) for name in POSTHOC)
+    assert POSTHOC == stats.POSTHOC
+    assert TESTS == stats.TESTS
 
 
 def test_malformed_toml_and_missing_main_are_refused():
