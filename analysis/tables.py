@@ -243,7 +243,7 @@ def _table(header: list[str], rows: list[list[str]], *, left: int = 1) -> list[s
     return lines
 
 
-def _pair_table(pairs: list[dict]) -> list[str]:
+def _pair_table(pairs: list[dict], alpha: float | None = None) -> list[str]:
     rows = [
         [
             pair["a"],
@@ -251,7 +251,7 @@ def _pair_table(pairs: list[dict]) -> list[str]:
             _num(pair["diff"], 3),
             _num(pair["t"], 2),
             str(pair["df"]),
-            format_p(pair["p"]).replace("= ", ""),
+            format_p(pair["p"], alpha=alpha).replace("= ", ""),
             f"[{_num(pair['ci_low'], 3)}, {_num(pair['ci_high'], 3)}]",
             "*" if pair["significant"] else "",
         ]
@@ -295,8 +295,16 @@ def format_summary(
         "Descriptives",
     ]
     out += _descriptives_lines(result, within)
+    if "planned" in result:
+        planned = result["planned"]
+        out += ["", f"Planned test: {planned['test']} ({planned['reason']}); the other follows"]
     out += _anova_lines(result, alpha=alpha, gate=gate)
     out += _posthoc_lines(result, alpha)
+    if "planned" in result:  # issue 21's additions
+        out += _effect_lines(result)
+        out += _friedman_lines(result, alpha)
+        out += _assumption_lines(result)
+        out += _model_lines(result)
     if result["warnings"]:
         out += ["", "Warnings"]
         out += [f"  - {warning}" for warning in result["warnings"]]
@@ -356,11 +364,97 @@ def _posthoc_lines(result: dict, alpha: float) -> list[str]:
         "",
         f"Fisher's LSD, paired (each pair's own differences, df = {n - 1}; {confidence})",
     ]
-    out += _pair_table(posthoc["lsd_paired"])
+    out += _pair_table(posthoc["lsd_paired"], alpha)
     out += [
         "",
         f"Fisher's LSD, pooled (MS_error = {_num(anova['ms_error'], 4)}, "
         f"df = {anova['df_error']}; {confidence})",
     ]
-    out += _pair_table(posthoc["lsd_pooled"])
+    out += _pair_table(posthoc["lsd_pooled"], alpha)
+    planned = result.get("posthoc_planned", "lsd_paired")
+    if planned in ("holm", "bonferroni"):
+        m = len(posthoc[planned])
+        out += ["", f"Paired t-tests, {planned.capitalize()} over {m} pairs (CI Bonferroni)"]
+        out += _pair_table(posthoc[planned], alpha)
+    if result.get("posthoc_warning"):
+        out += [f"  note: {result['posthoc_warning']}"]
+    return out
+
+
+def _effect_lines(result: dict) -> list[str]:
+    """eta squared with its CI and the pairs' mean differences and d_z with CIs."""
+    sizes = result["effect_sizes"]
+    np2, level = sizes["np2"], sizes["pair_ci_level"]
+    out = [
+        "",
+        "Effect sizes",
+        f"  eta_p^2 = {_num(np2['value'], 3)}, {100 * np2['ci_level']:g}% CI "
+        f"[{_num(np2['ci_low'], 3)}, {_num(np2['ci_high'], 3)}] ({np2['method']}); "
+        f"eta_G^2 = {_num(sizes['ng2']['value'], 3)}",
+        f"  pairs: mean difference and Cohen's d_z, {100 * level:g}% CIs "
+        f"(d_z: {sizes['dz_ci_method']})",
+    ]
+    rows = [
+        [
+            e["a"],
+            e["b"],
+            _num(e["diff"], 3),
+            f"[{_num(e['ci_low'], 3)}, {_num(e['ci_high'], 3)}]",
+            _num(e["dz"], 2),
+            f"[{_num(e['dz_ci_low'], 2)}, {_num(e['dz_ci_high'], 2)}]",
+        ]
+        for e in result["pairs"]
+    ]
+    return out + _table(["a", "b", "diff (a-b)", "CI", "d_z", "CI"], rows, left=2)
+
+
+def _friedman_lines(result: dict, alpha: float) -> list[str]:
+    friedman = result["friedman"]
+    out = ["", "Friedman test (ranks within subject)", f"  {result['apa']['friedman']}"]
+    if not friedman["posthoc"]["ran"]:
+        return out + ["  Wilcoxon signed-rank pairs: not run (Friedman not significant)"]
+    rows = [
+        [
+            w["a"],
+            w["b"],
+            _num(w["median_diff"], 3),
+            _num(w["V"], 1),
+            str(w["n"]),
+            format_p(w["p_unc"]).replace("= ", ""),
+            format_p(w["p"], alpha=alpha).replace("= ", ""),
+            "*" if w["significant"] else "",
+        ]
+        for w in friedman["posthoc"]["wilcoxon_holm"]
+    ]
+    header = ["a", "b", "median diff", "V", "n", "p", "p (Holm)", "sig"]
+    return out + ["  Wilcoxon signed-rank pairs, Holm"] + _table(header, rows, left=2)
+
+
+def _assumption_lines(result: dict) -> list[str]:
+    checks = result["assumptions"]
+    out = ["", "Assumptions"]
+    for pair in checks["normality"]["pairs"]:
+        verdict = " (not normal)" if pair["violated"] else ""
+        out.append(
+            f"  Shapiro-Wilk {pair['a']} - {pair['b']}: W = {_num(pair['W'], 3)}, "
+            f"p {format_p(pair['p'])}{verdict}"
+        )
+    outliers = checks["outliers"]
+    out.append(
+        f"  outliers (|studentised residual| > {outliers['limit']:g}): {outliers['count']}"
+        + (f", max |t| = {_num(outliers['max_abs'])}" if outliers["max_abs"] is not None else "")
+    )
+    return out
+
+
+def _model_lines(result: dict) -> list[str]:
+    mixed, apa = result["mixed"], result["apa"]
+    out = []
+    if mixed is not None:
+        out += ["", f"Mixed model {mixed['formula']}", f"  mode: {apa['mixed']}"]
+        if mixed["incomplete_subjects"]:
+            out.append(f"  kept with a missing level: {', '.join(mixed['incomplete_subjects'])}")
+        out.append(f"  caveat: {mixed['caveat']}")
+    if result["order"] is not None:
+        out += ["", "Order effects (mixed-model likelihood ratios)", f"  {apa['order']}"]
     return out

@@ -45,6 +45,7 @@ def ncp_interval_f(F: float, df1: float, df2: float, level: float) -> tuple[floa
     def bound(target: float) -> float:
         if stats.f.cdf(F, df1, df2) <= target:
             return 0.0
+
         def f(lam: float) -> float:
             cdf = stats.ncf.cdf(F, df1, df2, lam)
             return (cdf if math.isfinite(cdf) else 0.0) - target  # NaN only far in the tail
