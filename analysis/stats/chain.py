@@ -148,7 +148,9 @@ def analyse(
     return _clean(result)
 
 
-def _check_options(alpha, sphericity_alpha, gate, test, posthoc) -> None:
+def _check_options(
+    alpha: float, sphericity_alpha: float, gate: str, test: str, posthoc: str
+) -> None:
     _check_alpha(alpha)
     _check_alpha(sphericity_alpha, "sphericity_alpha")
     _check_gate(gate)
