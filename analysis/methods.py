@@ -293,6 +293,14 @@ def _modes(frames: Frames, data: StudyData, protocol: dict[str, Any]) -> str:
     return "; ".join(_mode_text(m, data, protocol) for m in frames.modes) + "."
 
 
+_POSTHOC_WORDS = {  # the protocol's posthoc (issue 21) as the Methods text names it
+    "lsd_paired": "Fisher's LSD (lsd paired)",
+    "lsd_pooled": "Fisher's LSD (lsd pooled)",
+    "holm": "paired t-tests with Holm's correction",
+    "bonferroni": "paired t-tests with Bonferroni's correction",
+}
+
+
 def _analysis(data: StudyData) -> str:
     c = data.config
     timeouts = (
@@ -305,7 +313,7 @@ def _analysis(data: StudyData) -> str:
         f"Each metric ({', '.join(c.metrics) or 'the report defaults'}) was analysed by a "
         f"one-way repeated-measures ANOVA over the modes at \u03b1 = {c.alpha:g}, with "
         f"Mauchly's test and the Greenhouse\u2013Geisser correction ({gate}), followed by "
-        f"Fisher's LSD ({c.posthoc.replace('_', ' ')}) where the omnibus test rejected; the "
+        f"{_POSTHOC_WORDS.get(c.posthoc, c.posthoc)} where the omnibus test rejected; the "
         f"score is the completion time plus {c.collision_penalty_s:g} s per collision; the "
         f"completion time and score of timed-out trials were {timeouts} (thesis Sec. 7.6.2)."
     )

@@ -15,6 +15,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from analysis.stats.apa import _no_leading_zero, format_p
+
 __all__ = ["SameColumnError", "apa_anova", "format_p", "format_summary", "read_long_csv"]
 
 MAX_MAGNITUDE = 1e15  # |x| of a dependent variable; beyond it sums of squares lose every digit
@@ -25,7 +27,9 @@ class SameColumnError(ValueError):
     different columns (a ``ValueError``; the CLI words it with its flags)."""
 
 
-def read_long_csv(path: str | Path, *, dv: str, within: str, subject: str) -> pd.DataFrame:
+def read_long_csv(
+    path: str | Path, *, dv: str, within: str, subject: str, order: str | None = None
+) -> pd.DataFrame:
     """Read and validate a long-format CSV: one row per subject and level.
 
     Parameters
@@ -34,12 +38,15 @@ def read_long_csv(path: str | Path, *, dv: str, within: str, subject: str) -> pd
         The CSV file (comma-separated, UTF-8, header row).
     dv, within, subject : str
         Columns holding the dependent variable, the within-subject factor and the subject id.
+    order : str, optional
+        Column holding each row's position in the subject's order of levels (1 = first).
 
     Returns
     -------
     pandas.DataFrame
-        Columns ``subject`` and ``within`` as str, ``dv`` as float64 (NaN = missing), in file
-        order, under their original names; the index is the file's line number.
+        Columns ``subject`` and ``within`` as str, ``dv`` as float64 (NaN = missing) and
+        ``order`` as float64 when given, in file order, under their original names; the
+        index is the file's line number.
 
     Raises
     ------
@@ -53,9 +60,12 @@ def read_long_csv(path: str | Path, *, dv: str, within: str, subject: str) -> pd
     path = Path(path)
     raw = _read_raw(path)
     _check_roles(path, [str(c) for c in raw.columns], dv=dv, within=within, subject=subject)
+    if order is not None:
+        _check_order_role(path, [str(c) for c in raw.columns], order, (dv, within, subject))
     for column in (subject, within):
         _check_ids(path, raw, column)
     values = _dv_values(path, raw, dv)
+    positions = _positions(path, raw, order, observed=values.notna()) if order else None
     levels = list(pd.unique(raw[within].str.strip()))
     if len(levels) < 2:
         found = ", ".join(repr(level) for level in levels) or "none"
@@ -63,7 +73,7 @@ def read_long_csv(path: str | Path, *, dv: str, within: str, subject: str) -> pd
             f"{path}: column {within!r}: only {len(levels)} level ({found}); a "
             f"repeated-measures ANOVA needs at least two"
         )
-    return pd.DataFrame(
+    frame = pd.DataFrame(
         {
             subject: raw[subject].str.strip(),
             within: raw[within].str.strip(),
@@ -71,6 +81,35 @@ def read_long_csv(path: str | Path, *, dv: str, within: str, subject: str) -> pd
         },
         index=raw.index,
     )
+    if positions is not None:
+        frame[order] = positions
+    return frame
+
+
+def _check_order_role(path: Path, columns: list[str], order: str, others: tuple) -> None:
+    if order not in columns:
+        available = ", ".join(repr(c) for c in columns)
+        raise ValueError(
+            f"{path}: column {order!r} (order) not found; available columns: {available}"
+        )
+    if order in others:
+        raise ValueError(
+            f"{path}: the order column {order!r} is also the dv, within or subject column"
+        )
+
+
+def _positions(path: Path, raw: pd.DataFrame, order: str, *, observed: pd.Series) -> pd.Series:
+    """The order column as numbers; a row with a dv value needs a finite position."""
+    text = raw[order].str.strip()
+    values = pd.to_numeric(text, errors="coerce").astype(float)
+    bad = (values.isna() | np.isinf(values)) & observed
+    if bad.any():
+        line = int(raw.index[np.flatnonzero(bad.to_numpy())[0]])
+        raise ValueError(
+            f"{path}: column {order!r} line {line}: {raw.loc[line, order]!r} is not a position "
+            f"(a number: 1 for the level the subject had first, 2 for the second, ...)"
+        )
+    return values
 
 
 def _read_raw(path: Path) -> pd.DataFrame:
@@ -158,32 +197,6 @@ def _dv_values(path: Path, raw: pd.DataFrame, dv: str) -> pd.Series:
 # --------------------------------------------------------------------------------------------
 
 
-def _no_leading_zero(text: str) -> str:
-    if text.startswith("0."):
-        return text[1:]
-    if text.startswith("-0."):
-        return "-" + text[2:]
-    return text
-
-
-def format_p(p: float | None, *, alpha: float | None = None) -> str:
-    """APA p: ``"< .001"``, ``"= .026"``, or ``"n/a"`` when undefined (None or NaN).
-
-    With ``alpha``, a p that three decimals would round across it (0.0496 to ".050", which
-    reads as not below alpha = .05) gets the decimals that keep it on its side:
-    ``"= .0496"``. Significance is always decided on the unrounded value."""
-    if p is None or not math.isfinite(p):
-        return "n/a"
-    if p < 0.001:
-        return "< .001"
-    digits = 3
-    # a printed "= .050" reads as not below alpha = .05: more decimals while the rounded
-    # value would read on the other side of alpha than the unrounded one is
-    while alpha is not None and digits < 8 and (round(p, digits) < alpha) != (p < alpha):
-        digits += 1
-    return "= " + _no_leading_zero(f"{p:.{digits}f}")
-
-
 def _num(value: float | None, digits: int = 2, *, zero: bool = True) -> str:
     if value is None or not math.isfinite(value):
         return "n/a"
@@ -240,7 +253,7 @@ def _table(header: list[str], rows: list[list[str]], *, left: int = 1) -> list[s
     return lines
 
 
-def _pair_table(pairs: list[dict]) -> list[str]:
+def _pair_table(pairs: list[dict], alpha: float | None = None) -> list[str]:
     rows = [
         [
             pair["a"],
@@ -248,7 +261,7 @@ def _pair_table(pairs: list[dict]) -> list[str]:
             _num(pair["diff"], 3),
             _num(pair["t"], 2),
             str(pair["df"]),
-            format_p(pair["p"]).replace("= ", ""),
+            format_p(pair["p"], alpha=alpha).replace("= ", ""),
             f"[{_num(pair['ci_low'], 3)}, {_num(pair['ci_high'], 3)}]",
             "*" if pair["significant"] else "",
         ]
@@ -292,8 +305,16 @@ def format_summary(
         "Descriptives",
     ]
     out += _descriptives_lines(result, within)
+    if "planned" in result:
+        planned = result["planned"]
+        out += ["", f"Planned test: {planned['test']} ({planned['reason']}); the other follows"]
     out += _anova_lines(result, alpha=alpha, gate=gate)
     out += _posthoc_lines(result, alpha)
+    if "planned" in result:  # issue 21's additions
+        out += _effect_lines(result)
+        out += _friedman_lines(result, alpha)
+        out += _assumption_lines(result)
+        out += _model_lines(result)
     if result["warnings"]:
         out += ["", "Warnings"]
         out += [f"  - {warning}" for warning in result["warnings"]]
@@ -353,11 +374,97 @@ def _posthoc_lines(result: dict, alpha: float) -> list[str]:
         "",
         f"Fisher's LSD, paired (each pair's own differences, df = {n - 1}; {confidence})",
     ]
-    out += _pair_table(posthoc["lsd_paired"])
+    out += _pair_table(posthoc["lsd_paired"], alpha)
     out += [
         "",
         f"Fisher's LSD, pooled (MS_error = {_num(anova['ms_error'], 4)}, "
         f"df = {anova['df_error']}; {confidence})",
     ]
-    out += _pair_table(posthoc["lsd_pooled"])
+    out += _pair_table(posthoc["lsd_pooled"], alpha)
+    planned = result.get("posthoc_planned", "lsd_paired")
+    if planned in ("holm", "bonferroni"):
+        m = len(posthoc[planned])
+        out += ["", f"Paired t-tests, {planned.capitalize()} over {m} pairs (CI Bonferroni)"]
+        out += _pair_table(posthoc[planned], alpha)
+    if result.get("posthoc_warning"):
+        out += [f"  note: {result['posthoc_warning']}"]
+    return out
+
+
+def _effect_lines(result: dict) -> list[str]:
+    """eta squared with its CI and the pairs' mean differences and d_z with CIs."""
+    sizes = result["effect_sizes"]
+    np2, level = sizes["np2"], sizes["pair_ci_level"]
+    out = [
+        "",
+        "Effect sizes",
+        f"  eta_p^2 = {_num(np2['value'], 3)}, {100 * np2['ci_level']:g}% CI "
+        f"[{_num(np2['ci_low'], 3)}, {_num(np2['ci_high'], 3)}] ({np2['method']}); "
+        f"eta_G^2 = {_num(sizes['ng2']['value'], 3)}",
+        f"  pairs: mean difference and Cohen's d_z, {100 * level:g}% CIs "
+        f"(d_z: {sizes['dz_ci_method']})",
+    ]
+    rows = [
+        [
+            e["a"],
+            e["b"],
+            _num(e["diff"], 3),
+            f"[{_num(e['ci_low'], 3)}, {_num(e['ci_high'], 3)}]",
+            _num(e["dz"], 2),
+            f"[{_num(e['dz_ci_low'], 2)}, {_num(e['dz_ci_high'], 2)}]",
+        ]
+        for e in result["pairs"]
+    ]
+    return out + _table(["a", "b", "diff (a-b)", "CI", "d_z", "CI"], rows, left=2)
+
+
+def _friedman_lines(result: dict, alpha: float) -> list[str]:
+    friedman = result["friedman"]
+    out = ["", "Friedman test (ranks within subject)", f"  {result['apa']['friedman']}"]
+    if not friedman["posthoc"]["ran"]:
+        return out + ["  Wilcoxon signed-rank pairs: not run (Friedman not significant)"]
+    rows = [
+        [
+            w["a"],
+            w["b"],
+            _num(w["median_diff"], 3),
+            _num(w["V"], 1),
+            str(w["n"]),
+            format_p(w["p_unc"]).replace("= ", ""),
+            format_p(w["p"], alpha=alpha).replace("= ", ""),
+            "*" if w["significant"] else "",
+        ]
+        for w in friedman["posthoc"]["wilcoxon_holm"]
+    ]
+    header = ["a", "b", "median diff", "V", "n", "p", "p (Holm)", "sig"]
+    return out + ["  Wilcoxon signed-rank pairs, Holm"] + _table(header, rows, left=2)
+
+
+def _assumption_lines(result: dict) -> list[str]:
+    checks = result["assumptions"]
+    out = ["", "Assumptions"]
+    for pair in checks["normality"]["pairs"]:
+        verdict = " (not normal)" if pair["violated"] else ""
+        out.append(
+            f"  Shapiro-Wilk {pair['a']} - {pair['b']}: W = {_num(pair['W'], 3)}, "
+            f"p {format_p(pair['p'])}{verdict}"
+        )
+    outliers = checks["outliers"]
+    out.append(
+        f"  outliers (|studentised residual| > {outliers['limit']:g}): {outliers['count']}"
+        + (f", max |t| = {_num(outliers['max_abs'])}" if outliers["max_abs"] is not None else "")
+    )
+    return out
+
+
+def _model_lines(result: dict) -> list[str]:
+    mixed, apa = result["mixed"], result["apa"]
+    out = []
+    if mixed is not None:
+        out += ["", f"Mixed model {mixed['formula']}", f"  mode: {apa['mixed']}"]
+        if mixed["incomplete_subjects"]:
+            out.append(f"  kept with a missing level: {', '.join(mixed['incomplete_subjects'])}")
+        out.append(f"  caveat: {mixed['caveat']}")
+    if result["order"] is not None:
+        out += ["", "Order effects (mixed-model likelihood ratios)", f"  {apa['order']}"]
     return out

@@ -32,6 +32,17 @@ KEYS = {
     "posthoc",
     "warnings",
     "dropped_subjects",
+    # issue 21
+    "planned",
+    "posthoc_planned",
+    "posthoc_warning",
+    "effect_sizes",
+    "pairs",
+    "assumptions",
+    "friedman",
+    "mixed",
+    "order",
+    "apa",
 }
 
 
@@ -248,3 +259,66 @@ def test_apa_line_when_f_is_undefined():
     result = analyse(frame, dv="y", within="w", subject="s")
     assert apa_anova(result) == "F(1, 1) undefined (SS_error = 0)"
     assert "SS_error is 0" in format_summary(result)
+
+
+# ------------------------------------------------------------------------------------------
+# issue 21: --test, --posthoc, --order
+# ------------------------------------------------------------------------------------------
+
+R_DIR = Path(__file__).parent / "r"
+LIKERT_ARGS = ["--dv", "rating", "--within", "mode", "--subject", "participant"]
+
+
+def test_friedman_holm_and_order_reach_the_json(capsys):
+    csv = str(R_DIR / "likert.csv")
+    args = ["stats", "--csv", csv, *LIKERT_ARGS, "--json"]
+    code, out, err = run(capsys, *args, "--test", "friedman", "--posthoc", "holm")
+    assert code == 0, err
+    result = json.loads(out)
+    assert result["planned"]["test"] == "friedman" and result["posthoc_planned"] == "holm"
+    assert result["order"] is None and result["mixed"]["formula"] == "y ~ mode + (1 | subject)"
+    code, out, err = run(capsys, *args, "--test", "auto", "--order", "position")
+    result = json.loads(out)
+    assert result["planned"]["requested"] == "auto" and result["planned"]["test"] == "friedman"
+    assert result["mixed"]["formula"] == "y ~ mode + position + (1 | subject)"
+    assert set(result["order"]) >= {"position", "mode_x_position", "position_means"}
+
+
+def test_text_summary_shows_the_additions(capsys):
+    csv = str(R_DIR / "four_levels.csv")
+    code, out, err = run(
+        capsys, "stats", "--csv", csv, "--dv", "y", "--within", "mode", "--subject",
+        "participant", "--order", "position",
+    )  # fmt: skip
+    assert code == 0, err
+    for heading in ("Effect sizes", "Friedman test", "Assumptions", "Mixed model", "Order"):
+        assert heading in out
+    assert "90% CI" in out and "d_z" in out
+    assert "protects the family-wise error rate only for three levels" in out  # LSD, 4 levels
+
+
+@pytest.mark.parametrize(
+    ("extra", "fragments"),
+    [
+        (["--test", "anova"], ["'anova'", "rm_anova"]),
+        (["--posthoc", "tukey"], ["'tukey'", "holm"]),
+        (["--order", "slot"], ["'slot'", "not found", "'position'"]),
+        (["--order", "rating"], ["order column 'rating'"]),
+    ],
+)
+def test_bad_options_are_one_line_exit_2(capsys, extra, fragments):
+    csv = str(R_DIR / "likert.csv")
+    code, out, err = run(capsys, "stats", "--csv", csv, *LIKERT_ARGS, "--json", *extra)
+    assert code == 2 and out == ""
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
+    for fragment in fragments:
+        assert fragment in err
+
+
+def test_a_position_that_is_not_a_number_names_its_line(tmp_path, capsys):
+    path = tmp_path / "ordered.csv"
+    path.write_text("participant,mode,position,y\nP1,a,1,3\nP1,b,second,4\nP2,a,2,5\nP2,b,1,6\n")
+    args = ["--dv", "y", "--within", "mode", "--subject", "participant", "--order", "position"]
+    code, out, err = run(capsys, "stats", "--csv", str(path), *args)
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert str(path) in err and "'position' line 3: 'second' is not a position" in err

@@ -24,6 +24,7 @@ from study.engine.protocol import (
     GATES,
     PHASE_KINDS,
     POSTHOC,
+    TESTS,
     TIMEOUTS,
     Baseline,
     Practice,
@@ -266,6 +267,23 @@ BAD = [
         "phases[2].rehearsal_questions",
     ),
     ("rehearsal_questions = 3", "rehearsal_questions = -1", "phases[2].rehearsal_questions"),
+    ('posthoc = "lsd_paired"', 'posthoc = "tukey"', "analysis.posthoc"),
+    ('posthoc = "lsd_paired"', 'posthoc = "holm"\ntest = "anova"', "analysis.test"),
+    (
+        "secondary_baseline_level = true",
+        "secondary_baseline_level = true\ntests = 3",
+        "analysis.tests",
+    ),
+    (
+        "secondary_baseline_level = true",
+        'secondary_baseline_level = true\n[analysis.tests]\ncollisions = "ranks"',
+        "analysis.tests.collisions",
+    ),
+    (
+        "secondary_baseline_level = true",
+        'secondary_baseline_level = true\n[analysis.tests]\nspeed = "friedman"',
+        "analysis.tests.speed",
+    ),
 ]
 
 
@@ -320,13 +338,27 @@ def test_bad_protocol_text_is_one_line_exit_2(tmp_path, capsys):
     assert len(err) == 1 and f"{bad}: field 'phases[0].text': unknown placeholder {{it}}" in err[0]
 
 
+def test_planned_tests_per_metric():
+    text = shipped_text("pilot").replace(
+        "secondary_baseline_level = true",
+        'secondary_baseline_level = true\ntest = "auto"\n[analysis.tests]\ncollisions = "friedman"',
+    )
+    text = text.replace('posthoc = "lsd_paired"', 'posthoc = "bonferroni"')
+    analysis = parse_protocol(text, "p.toml", known_modes=KNOWN).analysis
+    assert analysis.posthoc == "bonferroni"
+    assert analysis.test_for("collisions") == "friedman" and analysis.test_for("tlx_raw") == "auto"
+    plain = parse_protocol(shipped_text("pilot"), "p.toml", known_modes=KNOWN).analysis
+    assert plain.test_for("collisions") == "rm_anova"  # the thesis's test unless declared
+
+
 def test_analysis_choices_match_the_analysis_package():
     from analysis import stats
     from analysis.data import load as analysis_data
 
     assert GATES == stats.GATES
     assert TIMEOUTS == analysis_data.TIMEOUTS
-    assert all(callable(getattr(stats, name)) for name in POSTHOC)
+    assert POSTHOC == stats.POSTHOC
+    assert TESTS == stats.TESTS
 
 
 def test_malformed_toml_and_missing_main_are_refused():

@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 import math
 import tomllib
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -60,13 +61,17 @@ class AnalysisConfig:
     ----------
     alpha : significance level ([analysis] alpha, 0.05).
     gate : which p gates the post-hoc tests ([analysis] gate, "auto").
-    posthoc : the LSD form the report leads with ([analysis] posthoc, "lsd_paired").
+    posthoc : the post-hoc family the report leads with ([analysis] posthoc, "lsd_paired";
+        also "lsd_pooled", "holm", "bonferroni").
     metrics : the protocol's planned metrics ([analysis] metrics).
     secondary_baseline_level : the baseline as a level of secondary metrics.
     collision_penalty_s : [s] per collision in the score ([scoring], 60).
     modes : the protocol's mode names in its order ([modes] names).
     timeouts : what a timed-out main trial's completion time and score are
         ([analysis] timeouts): "exclude" (missing) or "censor" (the time limit).
+    test : the planned omnibus test of every metric ([analysis] test, "rm_anova"; also
+        "friedman", "auto").
+    tests : metric -> planned test, overriding ``test`` ([analysis.tests]).
     end_on_collision : a collision ends a main trial (a main phase's ``end_on_collision``,
         the Sec. 7.5 kind of study: its crashes and Table 7.10 are reported).
     """
@@ -80,6 +85,12 @@ class AnalysisConfig:
     modes: tuple[str, ...] = ()
     timeouts: str = "exclude"
     end_on_collision: bool = False
+    test: str = "rm_anova"
+    tests: Mapping[str, str] = field(default_factory=dict)
+
+    def test_for(self, metric: str) -> str:
+        """The planned omnibus test of ``metric`` (its [analysis.tests] entry, else test)."""
+        return self.tests.get(metric, self.test)
 
 
 @dataclass(frozen=True, slots=True)
@@ -98,6 +109,17 @@ class StudyData:
     study: dict[str, Any]
     config: AnalysisConfig
     tables: dict[str, pd.DataFrame] = field(default_factory=dict)
+
+
+_TESTS = ("rm_anova", "friedman", "auto")  # analysis.stats.TESTS, without importing scipy
+
+
+def _test(value: Any, name: str, source: str) -> str:
+    if value not in _TESTS:
+        raise ValueError(
+            f"{source}: field {name!r} must be one of {', '.join(_TESTS)}, got {value!r}"
+        )
+    return str(value)
 
 
 def read_config(protocol_text: str, *, source: str = "protocol") -> AnalysisConfig:
@@ -143,6 +165,11 @@ def _config(doc: dict[str, Any], source: str) -> AnalysisConfig:
         collision_penalty_s=float(scoring.get("collision_penalty_s", 60.0)),
         modes=tuple(str(m) for m in modes),
         timeouts=timeouts,
+        test=_test(analysis.get("test", "rm_anova"), "analysis.test", source),
+        tests={
+            str(k): _test(v, f"analysis.tests.{k}", source)
+            for k, v in (analysis.get("tests", {}) or {}).items()
+        },
         end_on_collision=any(
             isinstance(ph, dict) and ph.get("kind") == "main" and ph.get("end_on_collision") is True
             for ph in doc.get("phases", []) or []

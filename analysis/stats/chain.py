@@ -7,13 +7,21 @@ from __future__ import annotations
 
 import pandas as pd
 
+from analysis.stats import apa
 from analysis.stats._numbers import _check_alpha, _clean, _number
 from analysis.stats.anova import _anova, _anova_dict
+from analysis.stats.assumptions import normality, outliers
 from analysis.stats.design import RepeatedMeasures, _descriptives, repeated_measures
-from analysis.stats.posthoc import _lsd_paired, _lsd_pooled
+from analysis.stats.effects import DZ_CI_METHOD, pair_effects, partial_eta_squared_ci
+from analysis.stats.mixed import cells, mixed_model, order_effects
+from analysis.stats.nonparametric import TESTS, choose_test, friedman, wilcoxon_holm
+from analysis.stats.posthoc import _adjusted, _lsd_paired, _lsd_pooled
 from analysis.stats.sphericity import _gg, _mauchly
 
 GATES: tuple[str, ...] = ("auto", "uncorrected", "greenhouse_geisser")
+POSTHOC: tuple[str, ...] = ("lsd_paired", "lsd_pooled", "holm", "bonferroni")
+# Steiger (2004): a two-sided 1 - 2 alpha interval of eta squared matches the F test.
+ETA_CI_LEVEL_OF_ALPHA = "1 - 2 alpha"
 
 
 def gate_p(
@@ -73,8 +81,12 @@ def analyse(
     alpha: float = 0.05,
     gate: str = "auto",
     sphericity_alpha: float = 0.05,
+    test: str = "rm_anova",
+    posthoc: str = "lsd_paired",
+    order: str | None = None,
+    mixed: bool = True,
 ) -> dict:
-    """Descriptives, repeated-measures ANOVA, sphericity, GG, gate and LSD for one metric.
+    """The whole analysis of one metric: the thesis's chain and issue 21's additions.
 
     Parameters
     ----------
@@ -83,33 +95,75 @@ def analyse(
     dv, within, subject : str
         Column names.
     alpha : float
-        Significance level of the gated ANOVA and of the LSD pairs; CI level 1 - alpha.
+        Significance level of the gated ANOVA, the post-hoc pairs, Friedman and the LRTs;
+        CI level 1 - alpha (eta squared: 1 - 2 alpha, Steiger 2004).
     gate : {"auto", "uncorrected", "greenhouse_geisser"}
-        Which p decides significance, see :func:`gate_p`.
+        Which p decides significance of the RM-ANOVA, see :func:`gate_p`.
     sphericity_alpha : float
         Mauchly's p below which sphericity counts as violated (the auto gate).
+    test : {"rm_anova", "friedman", "auto"}
+        The planned omnibus test (see :func:`analysis.stats.nonparametric.choose_test`);
+        both are computed, the planned one leads.
+    posthoc : {"lsd_paired", "lsd_pooled", "holm", "bonferroni"}
+        The planned post-hoc family of the RM-ANOVA path (every family is computed).
+    order : str, optional
+        Column of each cell's position in the subject's order (1, 2, ...): enables the order
+        checks and the position covariate of the mixed model.
+    mixed : bool
+        Fit the mixed model (statsmodels MixedLM; about a second per metric).
 
     Returns
     -------
     dict
-        JSON-safe (plain Python numbers, None instead of NaN), keys ``n_subjects``,
-        ``levels``, ``descriptives`` {level: {mean, sd, se, n}}, ``anova`` (see
-        :func:`rm_anova`), ``sphericity`` (see :func:`mauchly`), ``greenhouse_geisser``
-        {eps, p}, ``p_gate``, ``p_gate_source`` ("uncorrected" or "greenhouse_geisser":
-        which p the gate used), ``significant``, ``posthoc`` {ran, lsd_paired, lsd_pooled}
-        (pair lists empty unless ``significant``), ``warnings`` (list of str) and
-        ``dropped_subjects`` (list of str).
+        JSON-safe (plain Python numbers, None instead of NaN). The thesis's keys:
+        ``n_subjects``, ``levels``, ``descriptives`` {level: {mean, sd, se, n}}, ``anova``
+        (see :func:`rm_anova`), ``sphericity`` (see :func:`mauchly`), ``greenhouse_geisser``
+        {eps, p}, ``p_gate``, ``p_gate_source``, ``significant`` (the RM-ANOVA's gate),
+        ``posthoc`` {ran, lsd_paired, lsd_pooled, holm, bonferroni} (pair lists empty
+        unless ``significant``; holm/bonferroni rows add ``p_unc``), ``warnings``,
+        ``dropped_subjects``. Issue 21's keys are documented in docs/algorithms.md
+        ("Issue 21 keys"): ``planned``, ``posthoc_planned``, ``posthoc_warning``,
+        ``effect_sizes``, ``pairs``, ``assumptions``, ``friedman``, ``mixed``, ``order``,
+        ``apa``.
 
     Notes
     -----
-    In R, the same chain: ``afex::aov_ez`` (ANOVA, GG), ``mauchly.test`` and per-pair
-    ``t.test(paired = TRUE)``; ``tests/r/rm_stats.R`` writes this object from base R.
+    R reproduces every figure: ``tests/r/oracle.R`` (afex, lme4, base R).
     In SPSS: GLM Repeated Measures with Descriptive statistics and Compare main effects (LSD).
     """
+    _check_options(alpha, sphericity_alpha, gate, test, posthoc)
+    data = repeated_measures(df, dv=dv, within=within, subject=subject)
+    result = _thesis_chain(data, within, alpha=alpha, gate=gate, sphericity_alpha=sphericity_alpha)
+    notes = result["warnings"]
+    result.update(_additions(data, result, alpha=alpha, posthoc=posthoc, notes=notes))
+    planned, reason = choose_test(data.y, requested=test)
+    result["friedman"] = _friedman_block(data, alpha)
+    result["planned"] = _planned(result, planned, test, reason, alpha)
+    if planned == "rm_anova":
+        notes.extend(_assumption_notes(result["assumptions"], result["posthoc_warning"]))
+    frame = cells(df, dv=dv, within=within, subject=subject, order=order)
+    result["mixed"] = _mixed_block(frame, data, alpha) if mixed else None
+    result["order"] = _order_block(frame, data, alpha) if order is not None else None
+    result["apa"] = _apa(result, alpha)
+    return _clean(result)
+
+
+def _check_options(
+    alpha: float, sphericity_alpha: float, gate: str, test: str, posthoc: str
+) -> None:
     _check_alpha(alpha)
     _check_alpha(sphericity_alpha, "sphericity_alpha")
     _check_gate(gate)
-    data = repeated_measures(df, dv=dv, within=within, subject=subject)
+    if test not in TESTS:
+        raise ValueError(f"test {test!r} is not allowed; choose one of {', '.join(TESTS)}")
+    if posthoc not in POSTHOC:
+        raise ValueError(f"posthoc {posthoc!r} is not allowed; choose one of {', '.join(POSTHOC)}")
+
+
+def _thesis_chain(
+    data: RepeatedMeasures, within: str, *, alpha: float, gate: str, sphericity_alpha: float
+) -> dict:
+    """Descriptives, ANOVA, sphericity, GG, gate and every post-hoc family (thesis 7.6.2)."""
     y = data.y
     anova = _anova(y)
     sphericity = _mauchly(y, alpha=sphericity_alpha)
@@ -119,23 +173,21 @@ def analyse(
     notes = [*data.warnings, *_degenerate_notes(anova.ss_error, sphericity, y.shape)]
     p = gate_p(anova_out, sphericity, gg_out, gate=gate)
     significant = p is not None and p < alpha
-    paired, pooled = _posthoc(data, alpha, notes) if significant else ([], [])
-    return _clean(
-        {
-            "n_subjects": int(y.shape[0]),
-            "levels": list(data.levels),
-            "descriptives": _described(data, within),
-            "anova": anova_out,
-            "sphericity": sphericity,
-            "greenhouse_geisser": gg_out,
-            "p_gate": p,
-            "p_gate_source": gate_source(sphericity, gate=gate),
-            "significant": bool(significant),
-            "posthoc": {"ran": bool(significant), "lsd_paired": paired, "lsd_pooled": pooled},
-            "warnings": notes,
-            "dropped_subjects": list(data.dropped_subjects),
-        }
-    )
+    families = _posthoc(data, alpha, notes) if significant else dict.fromkeys(POSTHOC, [])
+    return {
+        "n_subjects": int(y.shape[0]),
+        "levels": list(data.levels),
+        "descriptives": _described(data, within),
+        "anova": anova_out,
+        "sphericity": sphericity,
+        "greenhouse_geisser": gg_out,
+        "p_gate": p,
+        "p_gate_source": gate_source(sphericity, gate=gate),
+        "significant": bool(significant),
+        "posthoc": {"ran": bool(significant), **families},
+        "warnings": notes,
+        "dropped_subjects": list(data.dropped_subjects),
+    }
 
 
 def _degenerate_notes(ss_error: float, sphericity: dict, shape: tuple[int, int]) -> list[str]:
@@ -153,15 +205,17 @@ def _degenerate_notes(ss_error: float, sphericity: dict, shape: tuple[int, int])
     return []
 
 
-def _posthoc(
-    data: RepeatedMeasures, alpha: float, notes: list[str]
-) -> tuple[list[dict], list[dict]]:
-    """Both LSD forms as JSON-safe pair lists; appends a note when a paired SD is 0."""
-    paired = _pairs(_lsd_paired(data.y, data.levels, alpha))
-    pooled = _pairs(_lsd_pooled(data.y, data.levels, alpha))
-    if any(pair["t"] is None for pair in paired):
+def _posthoc(data: RepeatedMeasures, alpha: float, notes: list[str]) -> dict[str, list[dict]]:
+    """Every post-hoc family as JSON-safe pair lists; a note when a paired SD is 0."""
+    families = {
+        "lsd_paired": _pairs(_lsd_paired(data.y, data.levels, alpha)),
+        "lsd_pooled": _pairs(_lsd_pooled(data.y, data.levels, alpha)),
+        "holm": _pairs(_adjusted(data.y, data.levels, alpha, "holm")),
+        "bonferroni": _pairs(_adjusted(data.y, data.levels, alpha, "bonferroni")),
+    }
+    if any(pair["t"] is None for pair in families["lsd_paired"]):
         notes.append("some paired differences have SD 0: their t and p are undefined")
-    return paired, pooled
+    return families
 
 
 def _described(data: RepeatedMeasures, within: str) -> dict[str, dict]:
@@ -176,3 +230,132 @@ def _described(data: RepeatedMeasures, within: str) -> dict[str, dict]:
         }
         for level, row in table.iterrows()
     }
+
+
+def _eta_level(alpha: float) -> float:
+    """The CI level of eta squared: 1 - 2 alpha (Steiger 2004), or 1 - alpha from alpha .25."""
+    return 1.0 - 2.0 * alpha if alpha < 0.25 else 1.0 - alpha
+
+
+def lsd_warning(posthoc: str, k: int) -> str | None:
+    """The warning when Fisher's LSD is planned with more than three levels, else None."""
+    if posthoc.startswith("lsd") and k > 3:
+        return (
+            f"Fisher's LSD ({posthoc}) protects the family-wise error rate only for three "
+            f"levels; with {k} levels use holm or bonferroni"
+        )
+    return None
+
+
+def _additions(
+    data: RepeatedMeasures, result: dict, *, alpha: float, posthoc: str, notes: list[str]
+) -> dict:
+    """Effect sizes with CIs, per-pair effects, assumption checks, the planned family."""
+    anova = result["anova"]
+    np2 = partial_eta_squared_ci(
+        anova["F"], anova["df_effect"], anova["df_error"], level=_eta_level(alpha)
+    )
+    ng2 = {"value": anova["ng2"], "ci_low": None, "ci_high": None, "ci_level": None}
+    ng2["method"] = "point estimate (Olejnik & Algina 2003); no interval"
+    sphericity = result["sphericity"]
+    return {
+        "posthoc_planned": posthoc,
+        "posthoc_warning": lsd_warning(posthoc, data.y.shape[1]),
+        "effect_sizes": {
+            "np2": np2,
+            "ng2": ng2,
+            "pair_ci_level": 1.0 - alpha,
+            "dz_ci_method": DZ_CI_METHOD,
+        },
+        "pairs": pair_effects(data.y, data.levels, level=1.0 - alpha),
+        "assumptions": {
+            "normality": normality(data.y, data.levels, alpha=alpha),
+            "outliers": outliers(data.y, data.levels, data.subjects),
+            "sphericity": {"violated": sphericity["violated"], "p": sphericity["p"]},
+        },
+    }
+
+
+def _friedman_block(data: RepeatedMeasures, alpha: float) -> dict:
+    """Friedman's test, Kendall's W and (when it rejects) the Wilcoxon-Holm pairs."""
+    out = friedman(data.y)
+    significant = out["p"] is not None and out["p"] < alpha
+    pairs = wilcoxon_holm(data.y, data.levels, alpha=alpha) if significant else []
+    out.update(significant=significant, posthoc={"ran": significant, "wilcoxon_holm": pairs})
+    return out
+
+
+def _planned(result: dict, planned: str, requested: str, reason: str, alpha: float) -> dict:
+    """Which omnibus test leads, why, and its verdict."""
+    other = "friedman" if planned == "rm_anova" else "rm_anova"
+    if planned == "rm_anova":
+        p, significant = result["p_gate"], result["significant"]
+    else:
+        p, significant = result["friedman"]["p"], result["friedman"]["significant"]
+    return {
+        "test": planned,
+        "other": other,
+        "requested": requested,
+        "reason": reason,
+        "p": p,
+        "significant": bool(significant),
+        "alpha": alpha,
+    }
+
+
+def _assumption_notes(assumptions: dict, lsd_note: str | None) -> list[str]:
+    """Warnings of the RM-ANOVA path's failed assumption checks (and the LSD warning)."""
+    notes = [lsd_note] if lsd_note else []
+    failed = [p for p in assumptions["normality"]["pairs"] if p["violated"]]
+    if failed:
+        listed = ", ".join(
+            f"{p['a']} - {p['b']} (W = {p['W']:.3f}, p {apa.format_p(p['p'])})" for p in failed
+        )
+        notes.append(f"Shapiro-Wilk rejects normal paired differences for {listed}")
+    outlying = assumptions["outliers"]
+    if outlying["count"]:
+        listed = ", ".join(
+            f"{o['subject']} in {o['level']} (t = {o['t']:.2f})" for o in outlying["items"][:5]
+        )
+        notes.append(
+            f"{outlying['count']} outlier(s), |studentised residual| > "
+            f"{outlying['limit']:g}: {listed}"
+        )
+    return notes
+
+
+def _mixed_block(frame: pd.DataFrame, data: RepeatedMeasures, alpha: float) -> dict:
+    out = mixed_model(frame, list(data.levels))
+    out["significant"] = out["lrt"]["p"] is not None and out["lrt"]["p"] < alpha
+    out["lrt"]["significant"] = out["significant"]
+    return out
+
+
+def _order_block(frame: pd.DataFrame, data: RepeatedMeasures, alpha: float) -> dict:
+    out = order_effects(frame, list(data.levels))
+    for key in ("position", "mode_x_position"):
+        out[key]["significant"] = out[key]["p"] is not None and out[key]["p"] < alpha
+    return out
+
+
+def _apa(result: dict, alpha: float) -> dict:
+    """APA lines: each omnibus test, the planned one, every pair, the mixed model, order."""
+    lines = {
+        "rm_anova": apa.apa_rm_anova(result, alpha=alpha),
+        "friedman": apa.apa_friedman(result["friedman"], alpha=alpha),
+    }
+    lines["planned"] = lines[result["planned"]["test"]]
+    if result["planned"]["test"] == "rm_anova":
+        tests = result["posthoc"][result["posthoc_planned"]]
+    else:
+        tests = result["friedman"]["posthoc"]["wilcoxon_holm"]
+    by_pair = {(t["a"], t["b"]): t for t in tests}
+    level = result["effect_sizes"]["pair_ci_level"]
+    lines["pairs"] = [
+        apa.apa_pair(e, by_pair.get((e["a"], e["b"])), level=level, alpha=alpha)
+        for e in result["pairs"]
+    ]
+    mixed, order = result["mixed"], result["order"]
+    lines["mixed"] = apa.apa_mixed(mixed, alpha=alpha) if mixed else None
+    lines["order"] = apa.apa_order(order, alpha=alpha) if order else None
+    return lines

@@ -135,3 +135,84 @@ def lsd_pooled(
     _check_alpha(alpha)
     data = repeated_measures(df, dv=dv, within=within, subject=subject)
     return _lsd_pooled(data.y, data.levels, alpha)
+
+
+ADJUSTED_COLUMNS: tuple[str, ...] = (*PAIR_COLUMNS, "p_unc")
+
+
+def holm(p: np.ndarray) -> np.ndarray:
+    """Holm's (1979) step-down adjusted p-values, in the input order (R: ``p.adjust(p, "holm")``).
+
+    With the m finite p-values sorted ascending p_(1) <= ... <= p_(m)::
+
+        p_holm_(i) = min(1, max_{j <= i} (m - j + 1) p_(j))
+
+    NaN (an undefined test) stays NaN and does not count in m, as in R.
+    """
+    p = np.asarray(p, dtype=float)
+    out = np.full(p.size, np.nan)
+    finite = np.flatnonzero(np.isfinite(p))
+    m = finite.size
+    order = finite[np.argsort(p[finite], kind="stable")]
+    out[order] = np.minimum(1.0, np.maximum.accumulate((m - np.arange(m)) * p[order]))
+    return out
+
+
+def bonferroni(p: np.ndarray) -> np.ndarray:
+    """Bonferroni's adjusted p-values min(1, m p), m the number of finite p (R's ``p.adjust``)."""
+    p = np.asarray(p, dtype=float)
+    return np.minimum(1.0, np.isfinite(p).sum() * p)
+
+
+def _adjusted(y: np.ndarray, levels: tuple[str, ...], alpha: float, method: str) -> pd.DataFrame:
+    """Paired t-tests with Holm or Bonferroni p and Bonferroni (simultaneous) CIs."""
+    n, k = y.shape
+    m = k * (k - 1) // 2
+    frame = _lsd_paired(y, levels, alpha / m)  # CI at 1 - alpha / m
+    raw = frame["p"].to_numpy(dtype=float)
+    adjusted = holm(raw) if method == "holm" else bonferroni(raw)
+    frame = frame.assign(p_unc=raw, p=adjusted, significant=adjusted < alpha)
+    return frame[list(ADJUSTED_COLUMNS)]
+
+
+def paired_adjusted(
+    df: pd.DataFrame,
+    *,
+    dv: str,
+    within: str,
+    subject: str,
+    method: str,
+    alpha: float = 0.05,
+) -> pd.DataFrame:
+    """Paired t-tests for every pair of levels with Holm or Bonferroni adjusted p-values.
+
+    Same t, df and difference as :func:`lsd_paired`; ``p`` is adjusted over the m = k(k-1)/2
+    pairs (``p_unc`` keeps the raw one); the CI is Bonferroni's simultaneous interval,
+    ``diff -/+ t_{1 - alpha / (2 m), n - 1} SE``, for both methods (Holm has no matching
+    interval; emmeans falls back to Bonferroni for ``confint(..., adjust = "holm")`` too).
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        Long format, see :func:`repeated_measures`.
+    dv, within, subject : str
+        Column names.
+    method : {"holm", "bonferroni"}
+    alpha : float
+        Family-wise significance level.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Columns ``a, b, diff, t, df, p, ci_low, ci_high, significant, p_unc``.
+
+    Notes
+    -----
+    In R: ``pairwise.t.test(df$dv, df$within, paired = TRUE, p.adjust.method = method)``;
+    pingouin 0.7: ``pairwise_tests(..., padjust="holm")``.
+    """
+    _check_alpha(alpha)
+    if method not in ("holm", "bonferroni"):
+        raise ValueError(f"method {method!r} is not allowed; choose holm or bonferroni")
+    data = repeated_measures(df, dv=dv, within=within, subject=subject)
+    return _adjusted(data.y, data.levels, alpha, method)

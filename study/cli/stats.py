@@ -12,7 +12,7 @@ from pathlib import Path
 
 import click
 
-from analysis.stats import GATES, analyse
+from analysis.stats import GATES, POSTHOC, TESTS, analyse
 from analysis.tables import SameColumnError, format_summary, read_long_csv
 
 
@@ -42,6 +42,28 @@ from analysis.tables import SameColumnError, format_summary, read_long_csv
     show_default=True,
     help="Which p gates the post-hoc tests: auto = Greenhouse-Geisser when Mauchly's p < .05.",
 )
+@click.option(
+    "--test",
+    type=click.Choice(TESTS),
+    default="rm_anova",
+    show_default=True,
+    help="The planned omnibus test; the other is reported too. auto = Friedman for whole "
+    "numbers with many ties (counts, rating items), else RM-ANOVA.",
+)
+@click.option(
+    "--posthoc",
+    type=click.Choice(POSTHOC),
+    default="lsd_paired",
+    show_default=True,
+    help="The planned post-hoc family of the RM-ANOVA (all four are in --json). LSD is "
+    "protected for three levels only; holm or bonferroni beyond.",
+)
+@click.option(
+    "--order",
+    default=None,
+    help="Column of each row's position in the subject's order (1, 2, ...): adds the "
+    "order-effect tests and the position covariate of the mixed model.",
+)
 def stats(
     csv_path: Path,
     dv: str,
@@ -50,22 +72,30 @@ def stats(
     as_json: bool,
     alpha: float,
     gate: str,
+    test: str,
+    posthoc: str,
+    order: str | None,
 ) -> None:
-    """Repeated-measures ANOVA, Mauchly's test, Greenhouse-Geisser, Fisher's LSD (paired and
-    pooled) and descriptives of DV by WITHIN for any long-format CSV.
+    """Statistics of DV by WITHIN for any long-format CSV: descriptives, repeated-measures
+    ANOVA with Mauchly's test and Greenhouse-Geisser, eta squared with CIs, the post-hoc
+    pairs (Fisher's LSD paired and pooled, Holm, Bonferroni) with mean differences and
+    Cohen's d_z with CIs, assumption checks (Shapiro-Wilk, outliers), Friedman with
+    Kendall's W and Wilcoxon-Holm pairs, a linear mixed model (random intercept per
+    subject) with its likelihood-ratio test, and with --order the order effects.
 
-    Subjects lacking a level are dropped (named in a warning); several rows for one subject
-    and level are averaged.
+    Subjects lacking a level are dropped from every test but the mixed model (named in a
+    warning); several rows for one subject and level are averaged.
     """
     try:
-        frame = read_long_csv(csv_path, dv=dv, within=within, subject=subject)
+        frame = read_long_csv(csv_path, dv=dv, within=within, subject=subject, order=order)
     except SameColumnError:
         raise ValueError(
             f"{csv_path}: --dv, --within and --subject must name three different columns, "
             f"got {dv!r}, {within!r}, {subject!r}"
         ) from None
+    options = {"alpha": alpha, "gate": gate, "test": test, "posthoc": posthoc, "order": order}
     try:
-        result = analyse(frame, dv=dv, within=within, subject=subject, alpha=alpha, gate=gate)
+        result = analyse(frame, dv=dv, within=within, subject=subject, **options)
     except ValueError as error:
         raise ValueError(f"{csv_path}: {error}") from error
     if as_json:

@@ -1,5 +1,6 @@
 #!/usr/bin/env Rscript
 # Reference computation, in base R, of what `asa stats` reports (analysis/stats/).
+# (The thesis's chain only; tests/r/oracle.R is the full oracle of issue 21, with golden files.)
 #
 # It produced nothing stored in this repository by itself: R is not installed on the machine
 # where the tests were written, so the tests check analysis/stats/ against independent

@@ -7,7 +7,8 @@ Tables and fields (every one optional unless marked; unknown keys are refused):
 required, with its scenario; ``[phases.after_trial]`` instrument, weights);
 ``[secondary]`` p_correct, timeout_s, gap_s, near_miss_offsets, p_addition;
 ``[scoring]`` collision_penalty_s; ``[analysis]`` alpha, gate, posthoc, metrics,
-secondary_baseline_level; ``[ui]`` window, fullscreen, show_map, layout, show_object,
+secondary_baseline_level, timeouts, test, ``[analysis.tests]`` (metric -> test);
+``[ui]`` window, fullscreen, show_map, layout, show_object,
 ``[ui.instructions]`` (phase -> the "get ready" text), ``[ui.texts]`` (titles, time's up,
 practice feedback, pause: :data:`study.engine.texts.DEFAULT_TEXTS`); ``[input]`` deadzone,
 ``[input.axes]``, ``[input.buttons]``, invert, ``[input.keys]`` (the keyboard's letters),
@@ -50,6 +51,7 @@ from study.engine.protocol.types import (
     POSTHOC,
     PRACTICE_ORDERS,
     ROUTE_POINTS,
+    TESTS,
     TIMEOUTS,
     TLX_WEIGHTS,
     AfterTrial,
@@ -311,11 +313,26 @@ def _analysis(r: FieldReader) -> AnalysisSettings:
         ),
         secondary_baseline_level=_boolean(r, "secondary_baseline_level", True),
         timeouts=r.string("timeouts", "exclude", allowed=TIMEOUTS),
+        test=r.string("test", "rm_anova", allowed=TESTS),
+        tests=_tests(r),
     )
     if not a.metrics:
         raise r.fail("metrics", f"must name at least one of {', '.join(METRICS)}")
     r.finish()
     return a
+
+
+def _tests(r: FieldReader) -> dict[str, str]:
+    """``[analysis.tests]``: metric -> planned test, overriding ``test`` for that metric."""
+    value = _raw(r, "tests", {})
+    if not isinstance(value, dict):
+        raise r.fail("tests", f"must be a table of metric = test, got {value!r}")
+    for metric, test in value.items():
+        if metric not in METRICS:
+            raise r.fail(f"tests.{metric}", f"is not a metric; choose from {', '.join(METRICS)}")
+        if test not in TESTS:
+            raise r.fail(f"tests.{metric}", f"must be one of {', '.join(TESTS)}, got {test!r}")
+    return dict(value)
 
 
 def _recording(r: FieldReader) -> RecordingSettings:

@@ -26,7 +26,9 @@ ROUTE_POINTS: tuple[str, ...] = ("A", "B")
 # the driving screen: "map" camera + scene map (Sec. 7.6.1, Fig. 7.47); "laser" the
 # robot-centred laser scan with the front and tail cameras, no map (Sec. 7.5, Fig. 7.42)
 UI_LAYOUTS: tuple[str, ...] = ("map", "laser")
-POSTHOC: tuple[str, ...] = ("lsd_paired", "lsd_pooled")
+# analysis.stats.POSTHOC and TESTS, repeated for the same reason as GATES below
+POSTHOC: tuple[str, ...] = ("lsd_paired", "lsd_pooled", "holm", "bonferroni")
+TESTS: tuple[str, ...] = ("rm_anova", "friedman", "auto")
 # analysis.stats.GATES, repeated so that loading a protocol does not import scipy and pandas
 # (about 1.5 s); tests/test_protocol.py checks that the two agree.
 GATES: tuple[str, ...] = ("auto", "uncorrected", "greenhouse_geisser")
@@ -223,6 +225,12 @@ class AnalysisSettings:
     metrics: tuple[str, ...]  # of METRICS
     secondary_baseline_level: bool  # the baseline as a further level for secondary metrics
     timeouts: str  # TIMEOUTS: timed-out trials' completion time and score
+    test: str = "rm_anova"  # TESTS: the planned omnibus test of every metric
+    tests: Mapping[str, str] = field(default_factory=dict)  # metric -> TESTS, overrides test
+
+    def test_for(self, metric: str) -> str:
+        """The planned omnibus test of ``metric`` (its own entry, else ``test``)."""
+        return self.tests.get(metric, self.test)
 
 
 @dataclass(frozen=True, slots=True)
