@@ -151,18 +151,33 @@ class _Written:
         return png, svg, svg_text
 
 
-def _analyse_metric(long: pd.DataFrame, cfg: AnalysisConfig) -> tuple[dict | None, str]:
-    """(the analyse() object, "") or (None, why the metric cannot be analysed)."""
+def analysis_frame(long: pd.DataFrame) -> tuple[pd.DataFrame, str | None]:
+    """``long`` with ``order`` = position in the participant's order from 1, and that
+    column's name; None (no order effects) when a level is not a position (the baseline)."""
+    if (long["position"] < 0).any():
+        return long, None
+    return long.assign(order=long["position"] + 1), "order"
+
+
+def _analyse_metric(
+    long: pd.DataFrame, cfg: AnalysisConfig, metric: str
+) -> tuple[dict | None, str]:
+    """(the analyse() object, "") or (None, why the metric cannot be analysed): the
+    protocol's planned test and post-hoc family, order effects where positions apply."""
     if long.empty or long["value"].notna().sum() == 0:
         return None, "no data"
+    frame, order = analysis_frame(long)
     try:
         result = analyse(
-            long,
+            frame,
             dv="value",
             within="mode",
             subject="participant",
             alpha=cfg.alpha,
             gate=cfg.gate,
+            test=cfg.test_for(metric),
+            posthoc=cfg.posthoc,
+            order=order,
         )
     except ValueError as error:
         return None, str(error)
@@ -189,7 +204,7 @@ def _sections(
         if planned:
             longs[metric.name] = (metric, long)
         tested, constant = without_constant_levels(metric, long)
-        result, reason = _analyse_metric(tested, cfg)
+        result, reason = _analyse_metric(tested, cfg, metric.name)
         if result is None:
             skipped.append({"name": metric.name, "planned": planned, "reason": reason})
             continue
@@ -232,6 +247,9 @@ def _section(
         "planned": planned,
         "result": result,
         "apa": apa_anova(result, alpha=cfg.alpha),
+        "apa_all": result["apa"],
+        "planned_test": result["planned"],
+        "order_effects": result["order"],
         "svg": Markup(svg_text),
         "png_name": png.name,
         "svg_name": svg.name,
@@ -568,6 +586,9 @@ def _render_html(
         table1=table1.to_dict("records"),
         table1_levels=[c for c in table1.columns if c not in ("metric", "label", "n", "note")],
         glossary=GLOSSARY,
+        design_caveat=next(
+            (x["order_effects"]["caveat"] for x in sections if x["order_effects"]), ""
+        ),
         experience=_experience_summary(frames, counted),
         modes=frames.modes,
         positions=positions,

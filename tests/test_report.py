@@ -19,7 +19,7 @@ from markupsafe import escape
 from analysis.data import load_study, tidy
 from analysis.metrics import BY_NAME, long_frame
 from analysis.presentation import without_constant_levels
-from analysis.report import build_report
+from analysis.report import analysis_frame, build_report
 from analysis.stats import analyse
 from analysis.tables import apa_anova
 from study.cli import main
@@ -85,11 +85,16 @@ def test_apa_sentence_per_metric_and_results_json(study_db, report):
     assert list(results) == [*paths.metrics, "recognition"]
     assert not any(BY_NAME[m].descriptive for m in paths.metrics)
     results.pop("recognition")
-    frames = tidy(load_study(study_db))
+    data = load_study(study_db)
+    frames, cfg = tidy(data), data.config
     for name, stored in results.items():
         assert str(escape(apa_anova(stored, alpha=0.05))) in html
         long, constant = without_constant_levels(BY_NAME[name], long_frame(frames, BY_NAME[name]))
-        fresh = analyse(long, dv="value", within="mode", subject="participant")
+        frame, order = analysis_frame(long)
+        fresh = analyse(
+            frame, dv="value", within="mode", subject="participant",
+            test=cfg.test_for(name), posthoc=cfg.posthoc, order=order,
+        )  # fmt: skip
         if constant:  # levels 0 by construction are described, not tested
             fresh["warnings"].append(
                 f"{', '.join(constant)} left out of the test: 0 by construction "

@@ -4,6 +4,7 @@ whiskers that do not go below zero and a paths figure large enough to read."""
 
 from __future__ import annotations
 
+import json
 import os
 import re
 import sys
@@ -12,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from markupsafe import escape
 
 from analysis.figures import metric_figure, paths_figure
 from analysis.metrics import BY_NAME
@@ -121,3 +123,19 @@ def test_paths_figure_has_readable_panels_and_distinct_markers():
     labels = {line.get_label(): line for line in fig.axes[0].get_lines()}
     assert labels["start"].get_marker() != labels["end"].get_marker()
     assert labels["start"].get_color() != labels["end"].get_color()
+
+
+def test_every_planned_metric_has_effect_sizes_and_the_design_checks(built):
+    paths, _, html = built
+    results = json.loads(paths.results_json.read_text())
+    text = re.sub(r"<svg.*?</svg>", "", html, flags=re.S)
+    assert 'id="design"' in text and "mode x position" in text
+    for name, r in results.items():
+        if name == "recognition":
+            continue
+        assert "90% CI" in r["apa"]["rm_anova"]  # eta_p^2 with its interval
+        for line in r["apa"]["pairs"]:
+            assert "d_z" in line and "95% CI" in line
+            assert str(escape(line)) in text
+        if r["order"]:  # order effects where every level is a position in the order
+            assert re.search(rf"<td>{name}</td><td>chi2\(\d+\) = ", text)
