@@ -1,6 +1,7 @@
 """What the report says around its statistics: Table 1, levels a metric is constant in by
-construction, the synthetic-data banner and the glossary of the terms the page uses
-(issue 21; the statistics themselves are :mod:`analysis.stats`).
+construction, the synthetic-data banner, the glossary of the terms the page uses (issue
+21), and the rows of the sample's experience, descriptives and pair tables (the
+statistics themselves are :mod:`analysis.stats`).
 
 Pure functions over the tidy frames and the ``analyse()`` objects; no I/O.
 """
@@ -11,7 +12,10 @@ import math
 
 import pandas as pd
 
+from analysis.data import Frames
 from analysis.metrics import Metric
+from analysis.tables import format_p
+from questionnaires import experience as experience_q
 
 SYNTHETIC_KINDS = ("synthetic", "scripted")  # participant kinds that are models, not people
 
@@ -137,8 +141,88 @@ def synthetic_banner(kinds: dict[str, int]) -> str:
     return SYNTHETIC_BANNER.format(n=n, total=total, what=what)
 
 
+def _fmt(value: float | None, digits: int = 2) -> str:
+    if value is None or (isinstance(value, float) and not math.isfinite(value)):
+        return "n/a"
+    return f"{value:.{digits}f}"
+
+
+def experience_summary(frames: Frames, counted: set[str]) -> dict | None:
+    r = frames.responses
+    r = r[(r["instrument"] == experience_q.INSTRUMENT_ID) & r["participant"].isin(counted)]
+    if r.empty:
+        return None
+    summaries, invalid = [], 0
+    for _, g in r.groupby("participant"):
+        answers = {
+            item: (text if isinstance(text, str) and text else value)
+            for item, value, text in zip(g["item"], g["value"], g["text"], strict=True)
+        }
+        answers = {
+            k: int(v) if isinstance(v, float) and v.is_integer() else v for k, v in answers.items()
+        }
+        try:
+            summaries.append(experience_q.summarise(answers))
+        except ValueError:
+            invalid += 1
+    if not summaries:
+        return None
+    ages = [s["age"] for s in summaries if s["age"] is not None]
+    hands: dict[str, int] = {}
+    for s in summaries:
+        key = s["handedness"] or "not given"
+        hands[key] = hands.get(key, 0) + 1
+    return {
+        "n": len(summaries),
+        "invalid": invalid,
+        "age": (
+            f"{sum(ages) / len(ages):.1f} (range {min(ages)}-{max(ages)}, n = {len(ages)})"
+            if ages
+            else "not given"
+        ),
+        "handedness": ", ".join(f"{k} {v}" for k, v in sorted(hands.items())),
+        "experienced": {
+            d: sum(bool(s[f"experienced_{d}"]) for s in summaries)
+            for d in experience_q.EXPERIENCE_DOMAINS
+        },
+        "any_experience": sum(bool(s["any_experience"]) for s in summaries),
+        "experience_mean": sum(s["experience_mean"] for s in summaries) / len(summaries),
+    }
+
+
+def pair_rows(pairs: list[dict], alpha: float) -> list[dict]:
+    return [
+        {
+            "pair": f"{p['a']} - {p['b']}",
+            "diff": _fmt(p["diff"], 3),
+            "t": _fmt(p["t"]),
+            "df": _fmt(p["df"], 0) if float(p["df"]).is_integer() else _fmt(p["df"]),
+            "p": format_p(p["p"], alpha=alpha),
+            "ci": f"[{_fmt(p['ci_low'], 3)}, {_fmt(p['ci_high'], 3)}]",
+            "significant": p["significant"],
+        }
+        for p in pairs
+    ]
+
+
+def descriptive_rows(result: dict) -> list[dict]:
+    return [
+        {
+            "level": level,
+            "mean": _fmt(d["mean"], 3),
+            "sd": _fmt(d["sd"], 3),
+            "se": _fmt(d["se"], 3),
+            "n": d["n"],
+        }
+        for level, d in result["descriptives"].items()
+    ]
+
+
 __all__ = [
     "GLOSSARY",
+    "descriptive_rows",
+    "experience_summary",
+    "pair_rows",
     "SYNTHETIC_BANNER",
     "SYNTHETIC_KINDS",
     "constant_levels",

@@ -12,7 +12,6 @@ recognition only, is described per mode and never tested (:mod:`analysis.recogni
 from __future__ import annotations
 
 import json
-import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -27,11 +26,18 @@ from analysis import figures as fig
 from analysis.data import BASELINE, AnalysisConfig, Frames, StudyData, load_study, tidy
 from analysis.methods import methods, methods_markdown
 from analysis.metrics import BY_NAME, Metric, long_frame, ordered_metrics
-from analysis.presentation import GLOSSARY, synthetic_banner, table_one, without_constant_levels
+from analysis.presentation import (
+    GLOSSARY,
+    descriptive_rows,
+    experience_summary,
+    pair_rows,
+    synthetic_banner,
+    table_one,
+    without_constant_levels,
+)
 from analysis.recognition import describe, html_rows, recognition_tables
 from analysis.stats import analyse
 from analysis.tables import apa_anova, format_p
-from questionnaires import experience as experience_q
 
 
 @dataclass(frozen=True, slots=True)
@@ -55,83 +61,6 @@ class ReportPaths:
     tables: tuple[Path, ...]
     metrics: tuple[str, ...]
     seconds: float
-
-
-def _fmt(value: float | None, digits: int = 2) -> str:
-    if value is None or (isinstance(value, float) and not math.isfinite(value)):
-        return "n/a"
-    return f"{value:.{digits}f}"
-
-
-def _experience_summary(frames: Frames, counted: set[str]) -> dict | None:
-    r = frames.responses
-    r = r[(r["instrument"] == experience_q.INSTRUMENT_ID) & r["participant"].isin(counted)]
-    if r.empty:
-        return None
-    summaries, invalid = [], 0
-    for _, g in r.groupby("participant"):
-        answers = {
-            item: (text if isinstance(text, str) and text else value)
-            for item, value, text in zip(g["item"], g["value"], g["text"], strict=True)
-        }
-        answers = {
-            k: int(v) if isinstance(v, float) and v.is_integer() else v for k, v in answers.items()
-        }
-        try:
-            summaries.append(experience_q.summarise(answers))
-        except ValueError:
-            invalid += 1
-    if not summaries:
-        return None
-    ages = [s["age"] for s in summaries if s["age"] is not None]
-    hands: dict[str, int] = {}
-    for s in summaries:
-        key = s["handedness"] or "not given"
-        hands[key] = hands.get(key, 0) + 1
-    return {
-        "n": len(summaries),
-        "invalid": invalid,
-        "age": (
-            f"{sum(ages) / len(ages):.1f} (range {min(ages)}-{max(ages)}, n = {len(ages)})"
-            if ages
-            else "not given"
-        ),
-        "handedness": ", ".join(f"{k} {v}" for k, v in sorted(hands.items())),
-        "experienced": {
-            d: sum(bool(s[f"experienced_{d}"]) for s in summaries)
-            for d in experience_q.EXPERIENCE_DOMAINS
-        },
-        "any_experience": sum(bool(s["any_experience"]) for s in summaries),
-        "experience_mean": sum(s["experience_mean"] for s in summaries) / len(summaries),
-    }
-
-
-def _pair_rows(pairs: list[dict], alpha: float) -> list[dict]:
-    return [
-        {
-            "pair": f"{p['a']} - {p['b']}",
-            "diff": _fmt(p["diff"], 3),
-            "t": _fmt(p["t"]),
-            "df": _fmt(p["df"], 0) if float(p["df"]).is_integer() else _fmt(p["df"]),
-            "p": format_p(p["p"], alpha=alpha),
-            "ci": f"[{_fmt(p['ci_low'], 3)}, {_fmt(p['ci_high'], 3)}]",
-            "significant": p["significant"],
-        }
-        for p in pairs
-    ]
-
-
-def _descriptive_rows(result: dict) -> list[dict]:
-    return [
-        {
-            "level": level,
-            "mean": _fmt(d["mean"], 3),
-            "sd": _fmt(d["sd"], 3),
-            "se": _fmt(d["se"], 3),
-            "n": d["n"],
-        }
-        for level, d in result["descriptives"].items()
-    ]
 
 
 @dataclass(frozen=True, slots=True)
@@ -253,11 +182,11 @@ def _section(
         "svg": Markup(svg_text),
         "png_name": png.name,
         "svg_name": svg.name,
-        "descriptives": _descriptive_rows(result),
+        "descriptives": descriptive_rows(result),
         "lead": cfg.posthoc,
-        "lead_pairs": _pair_rows(result["posthoc"][cfg.posthoc], cfg.alpha),
+        "lead_pairs": pair_rows(result["posthoc"][cfg.posthoc], cfg.alpha),
         "other": other,
-        "other_pairs": _pair_rows(result["posthoc"][other], cfg.alpha),
+        "other_pairs": pair_rows(result["posthoc"][other], cfg.alpha),
         "notes": notes,
         "sphericity": result["sphericity"],
         "gg": result["greenhouse_geisser"],
@@ -589,7 +518,7 @@ def _render_html(
         design_caveat=next(
             (x["order_effects"]["caveat"] for x in sections if x["order_effects"]), ""
         ),
-        experience=_experience_summary(frames, counted),
+        experience=experience_summary(frames, counted),
         modes=frames.modes,
         positions=positions,
         orders=orders.to_dict("records"),
