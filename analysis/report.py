@@ -35,6 +35,7 @@ from analysis.presentation import (
     table_one,
     without_constant_levels,
 )
+from analysis.r_script import analysis_r
 from analysis.recognition import describe, html_rows, recognition_tables
 from analysis.stats import analyse
 from analysis.tables import apa_anova, format_p
@@ -322,6 +323,7 @@ def build_report(
             f"({'; '.join(s['name'] + ': ' + s['reason'] for s in skipped) or 'no data'})"
         )
     written.csv(_summary_table(results, data.config.metrics), out / "tables" / "summary.csv")
+    _write_r_script(data, frames, results, out)
     say("figures: TLX profile, clearance, paths")
     extra = _extra_figures(data, frames, out, written)
     crash = _crashes(data, frames, out, written) if data.config.end_on_collision else None
@@ -354,6 +356,21 @@ def build_report(
         metrics=tuple(results),
         seconds=time.perf_counter() - start,
     )
+
+
+def _write_r_script(data: StudyData, frames: Frames, results: dict, out: Path) -> None:
+    """``analysis.R``: the planned metrics' tests in R, beside ``tables/trials.csv``."""
+    planned = [m for m in results if m in data.config.metrics]
+    text = analysis_r(
+        name=str(data.study["name"]),
+        sha=str(data.study["protocol_sha256"]),
+        alpha=data.config.alpha,
+        metrics=planned,
+        tests={m: results[m]["planned"]["test"] for m in planned},
+        posthoc=data.config.posthoc,
+        modes=list(frames.modes),
+    )
+    (out / "analysis.R").write_text(text, encoding="utf-8")
 
 
 def _recognition(

@@ -7,6 +7,8 @@ from __future__ import annotations
 import json
 import os
 import re
+import shutil
+import subprocess
 import sys
 from pathlib import Path
 
@@ -139,3 +141,29 @@ def test_every_planned_metric_has_effect_sizes_and_the_design_checks(built):
             assert str(escape(line)) in text
         if r["order"]:  # order effects where every level is a position in the order
             assert re.search(rf"<td>{name}</td><td>chi2\(\d+\) = ", text)
+
+
+def test_the_report_writes_its_planned_tests_as_an_r_script(built):
+    paths, out, _ = built
+    script = (out / "analysis.R").read_text(encoding="utf-8")
+    results = json.loads(paths.results_json.read_text())
+    planned = [m for m in ("completion_time_s", "collisions", "score_s") if m in results]
+    assert planned and 'read.csv("tables/trials.csv"' in script
+    for name in planned:
+        assert f'"{name}"' in script
+        assert f'{name} = "{results[name]["planned"]["test"]}"' in script
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(shutil.which("Rscript") is None, reason="R is not installed")
+def test_the_r_script_runs_and_agrees_with_the_report(built):
+    paths, out, _ = built
+    run = subprocess.run(
+        ["Rscript", "analysis.R"], cwd=out, capture_output=True, text=True, timeout=600
+    )
+    assert run.returncode == 0, run.stderr
+    results = json.loads(paths.results_json.read_text())
+    for name in ("completion_time_s", "collisions", "score_s"):
+        block = run.stdout.split(f"===== {name} ")[1].split("=====")[0]
+        row = re.search(r"^mode\s+\S+\s+\S+\s+\S+\s+\S+\s+(\S+)", block, flags=re.M)
+        assert row and float(row[1]) == pytest.approx(results[name]["anova"]["F"], rel=1e-4)
