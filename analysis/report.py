@@ -165,7 +165,7 @@ def _section(
     expected = list(frames.modes) + (
         [BASELINE] if metric.baseline and cfg.secondary_baseline_level else []
     )
-    left_out = [lv for lv in expected if lv not in result["levels"]]
+    left_out = [lv for lv in expected if lv not in result["levels"] and lv not in metric.zero_in]
     if left_out:
         notes.append(f"levels without any value left out: {', '.join(left_out)}")
     figure = fig.metric_figure(long, metric, frames.modes)

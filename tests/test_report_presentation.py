@@ -50,6 +50,9 @@ def test_table_one_gives_every_planned_metric_as_m_sd_per_mode(built):
     paths, out, html = built
     table = pd.read_csv(out / "tables" / "table1.csv", keep_default_na=False)
     assert 'id="table1"' in html
+    # assist_share's manual level is 0 by construction: described, not "without any value"
+    assert "assist_share: manual left out of the test: 0 by construction" in html
+    assert "assist_share: levels without any value left out" not in html
     assert {"completion_time_s", "collisions", "score_s"} <= set(table["metric"])
     for mode in ("manual", "reactive_bn", "contextual_task"):
         cells = table[mode]
