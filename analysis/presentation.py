@@ -89,16 +89,20 @@ def without_constant_levels(metric: Metric, long: pd.DataFrame) -> tuple[pd.Data
     return kept, out
 
 
-def _m_sd(values: pd.Series) -> str:
-    """``"M (SD)"`` with three significant places where the values are small."""
+def _m_sd(values: pd.Series, digits: int) -> str:
+    """``"M (SD)"`` of ``values`` with ``digits`` decimals ("n/a" without values)."""
     v = values.dropna().astype(float)
     if v.empty:
         return "n/a"
-    mean, sd = float(v.mean()), float(v.std(ddof=1)) if len(v) > 1 else math.nan
-    scale = max(abs(mean), sd if math.isfinite(sd) else 0.0)
-    digits = 2 if scale >= 1 else 3
+    sd = float(v.std(ddof=1)) if len(v) > 1 else math.nan
     sd_text = f"{sd:.{digits}f}" if math.isfinite(sd) else "n/a"
-    return f"{mean:.{digits}f} ({sd_text})"
+    return f"{float(v.mean()):.{digits}f} ({sd_text})"
+
+
+def _digits(values: pd.Series) -> int:
+    """Decimals of a Table 1 row: 2, or 3 when every value of the metric is below 1."""
+    v = values.dropna().astype(float).abs()
+    return 3 if len(v) and float(v.max()) < 1 else 2
 
 
 def table_one(longs: dict[str, tuple[Metric, pd.DataFrame]], levels: list[str]) -> pd.DataFrame:
@@ -121,9 +125,10 @@ def table_one(longs: dict[str, tuple[Metric, pd.DataFrame]], levels: list[str]) 
     for name, (metric, long) in longs.items():
         row = {"metric": name, "label": metric.label}
         row["n"] = int(long.dropna(subset=["value"])["participant"].nunique())
+        digits = _digits(long["value"])  # one precision a row
         for level in levels:
             values = long.loc[long["mode"] == level, "value"]
-            row[level] = _m_sd(values) if len(values) else ""
+            row[level] = _m_sd(values, digits) if len(values) else ""
         constant = constant_levels(metric, long)
         row["note"] = f"0 by construction in {', '.join(constant)}" if constant else ""
         rows.append(row)
