@@ -227,6 +227,23 @@ def read_map(yaml_path: str | Path) -> tuple[np.ndarray, tuple[float, float, flo
     return image, (x0, x0 + cols * resolution, y0, y0 + rows * resolution)
 
 
+def _aspect(
+    samples: pd.DataFrame,
+    background: tuple[np.ndarray, tuple[float, float, float, float]] | None,
+) -> float:
+    """Height over width of the paths figure's drawn area: the map's extent, else the
+    paths' (1 without either)."""
+    if background is not None:
+        x0, x1, y0, y1 = background[1]
+    elif len(samples):
+        x0, x1 = float(samples["x"].min()), float(samples["x"].max())
+        y0, y1 = float(samples["y"].min()), float(samples["y"].max())
+    else:
+        return 1.0
+    width, height = abs(x1 - x0), abs(y1 - y0)
+    return height / width if width > 0 and height > 0 else 1.0
+
+
 def paths_figure(
     samples: pd.DataFrame,
     trials: pd.DataFrame,
@@ -240,7 +257,10 @@ def paths_figure(
     n = max(len(modes), 1)
     cols = min(n, 2)
     rows = int(np.ceil(n / cols))
-    fig = _figure(6.0 * cols, 6.0 * rows, left=0.06, bottom=0.06, wspace=0.12, hspace=0.15)
+    aspect = _aspect(samples, background)  # height / width of the drawn area
+    panel_h = min(max(6.0 * aspect, 3.0), 8.0) + 0.9  # + title and axis labels
+    fig = _figure(6.0 * cols, panel_h * rows, left=0.07, right=0.98, bottom=0.9 / (panel_h * rows),
+                  top=1 - 0.4 / (panel_h * rows), wspace=0.15, hspace=0.9 / panel_h)  # fmt: skip
     axes = np.atleast_1d(fig.subplots(rows, cols, sharex=True, sharey=True)).ravel()
     for ax in axes[n:]:
         ax.set_visible(False)
