@@ -301,6 +301,15 @@ _POSTHOC_WORDS = {  # the protocol's posthoc (issue 21) as the Methods text name
 }
 
 
+_TEST_WORDS = {  # the protocol's [analysis] test (issue 21) as the Methods text names it
+    "friedman": "Friedman's test (with Kendall's W), followed by Wilcoxon signed-rank pairs "
+    "with Holm's correction where it rejected",
+    "auto": "the test planned per kind of metric: Friedman's test (Kendall's W; Wilcoxon "
+    "pairs with Holm's correction) for counts with many ties and single rating items, "
+    "else the repeated-measures ANOVA as above",
+}
+
+
 def _analysis(data: StudyData) -> str:
     c = data.config
     timeouts = (
@@ -309,13 +318,27 @@ def _analysis(data: StudyData) -> str:
         else "kept at the time limit as right-censored values"
     )
     gate = _GATES.get(c.gate, c.gate)
-    return (
-        f"Each metric ({', '.join(c.metrics) or 'the report defaults'}) was analysed by a "
-        f"one-way repeated-measures ANOVA over the modes at \u03b1 = {c.alpha:g}, with "
+    anova = (
+        f"a one-way repeated-measures ANOVA over the modes at \u03b1 = {c.alpha:g}, with "
         f"Mauchly's test and the Greenhouse\u2013Geisser correction ({gate}), followed by "
-        f"{_POSTHOC_WORDS.get(c.posthoc, c.posthoc)} where the omnibus test rejected; the "
-        f"score is the completion time plus {c.collision_penalty_s:g} s per collision; the "
-        f"completion time and score of timed-out trials were {timeouts} (thesis Sec. 7.6.2)."
+        f"{_POSTHOC_WORDS.get(c.posthoc, c.posthoc)} where the omnibus test rejected"
+    )
+    planned = [f"{m}: {_TEST_WORDS[t].split(' (')[0]}" for m, t in c.tests.items()]
+    lead = anova if c.test == "rm_anova" else f"{_TEST_WORDS[c.test]} (the ANOVA: {anova})"
+    return (
+        f"Each metric ({', '.join(c.metrics) or 'the report defaults'}) was analysed by "
+        f"{lead}"
+        + (f"; planned per metric: {'; '.join(planned)}" if planned else "")
+        + "; effect sizes are partial eta squared with its 90 % interval (noncentral F) and "
+        "generalised eta squared, and per pair the mean difference and Cohen's d_z with "
+        "their intervals (noncentral t); the normality of the paired differences "
+        "(Shapiro\u2013Wilk) and outliers (studentised residuals beyond 3) were checked; a "
+        "linear mixed model (mode fixed, position in the order a covariate, a random "
+        "intercept per participant; likelihood-ratio test of mode, ML fits) keeps "
+        "participants who miss a mode, and tests order effects (position, mode \u00d7 "
+        f"position); the score is the completion time plus {c.collision_penalty_s:g} s per "
+        f"collision; the completion time and score of timed-out trials were {timeouts} "
+        "(thesis Sec. 7.6.2)."
     )
 
 
