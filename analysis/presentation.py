@@ -49,6 +49,12 @@ GLOSSARY: tuple[tuple[str, str], ...] = (
         "pair, as SPSS's post hoc LSD after a repeated-measures ANOVA.",
     ),
     (
+        "holm, bonferroni",
+        "paired t-tests per pair with Holm's step-down or Bonferroni's adjustment of the "
+        "p-values, which keep the family-wise error rate for any number of levels (LSD "
+        "only for three); their intervals are Bonferroni's simultaneous ones.",
+    ),
+    (
         "eta_p^2, eta_G^2",
         "partial and generalised eta squared: the share of variance the factor explains, "
         "without and with the between-subject variance in the denominator.",
