@@ -311,11 +311,7 @@ def build_report(
     written = _Written(figures=[], tables=[])
     positions, orders = _write_frames(frames, out / "tables", written)
     sections, skipped, results, longs = _sections(data, frames, out, say, written, metrics)
-    levels = list(frames.modes) + sorted(
-        {lv for _, lg in longs.values() for lv in lg["mode"]} - set(frames.modes)
-    )
-    table1 = table_one(longs, levels)
-    written.csv(table1, out / "tables" / "table1.csv")
+    table1 = _write_table_one(frames, longs, out / "tables", written)
     recognition = _recognition(frames, out / "tables", say, written, metrics)
     if not results and not recognition:
         raise ValueError(
@@ -333,18 +329,9 @@ def build_report(
     section = methods(data, frames)
     (out / "methods.md").write_text(methods_markdown(section), encoding="utf-8")
     html = _render_html(
-        data,
-        frames,
-        positions,
-        orders,
-        sections,
-        skipped,
-        extra,
-        recognition,
-        section,
-        crash,
+        data, frames, positions, orders, sections, skipped, extra, recognition, section, crash,
         table1=table1,
-    )
+    )  # fmt: skip
     html_path = out / "report.html"
     html_path.write_text(html, encoding="utf-8")
     say(f"wrote {html_path}")
@@ -356,6 +343,17 @@ def build_report(
         metrics=tuple(results),
         seconds=time.perf_counter() - start,
     )
+
+
+def _write_table_one(frames: Frames, longs: dict, tables: Path, written: _Written) -> pd.DataFrame:
+    """Table 1 of the planned metrics' long frames (the modes, then any further level such
+    as the baseline), written as ``table1.csv``."""
+    levels = list(frames.modes) + sorted(
+        {lv for _, lg in longs.values() for lv in lg["mode"]} - set(frames.modes)
+    )
+    table1 = table_one(longs, levels)
+    written.csv(table1, tables / "table1.csv")
+    return table1
 
 
 def _write_r_script(data: StudyData, frames: Frames, results: dict, out: Path) -> None:
