@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 
 from sim.scene import Cylinder
 from sim.types import Pose2D
@@ -83,3 +84,23 @@ def test_the_entry_is_given_up_after_entry_tries_stuck_episodes():
     assert p._give_up_entry(entry, near)
     assert not p._give_up_entry(goal, near) and not p._give_up_entry(LEG, near)
     assert not p._give_up_entry(entry, far) and p._stuck == 0  # far away: forgotten
+
+
+def test_turning_in_place_under_a_translation_command_counts_as_stuck():
+    """Generated scene 19 (issue 20's scenes bench): the reactive mode's OA passed only the
+    turn while the driver pushed backwards for 540 s; the turns reset the stuck clock, so
+    the orbit's entry was never given up. Only translation counts as moving now."""
+    s = ScriptedSettings()
+    p = ScriptedParticipant(np.random.default_rng(0), settings=s)
+    p._still_since, p._still_at, p._backoff_until = 0.0, (0.0, 0.0, 0.0), -math.inf
+    u, t, yaw = np.array([-0.15, 0.0, 0.4]), 0.0, 0.0
+    while p._stuck == 0 and t < 5.0:  # the heading turns 0.02 rad a tick, no translation
+        t, yaw = t + 0.05, yaw + 0.02
+        out = p._unstick(t, Pose2D(0.005, 0.0, yaw), u)
+    assert p._stuck == 1 and t == pytest.approx(s.stuck_s, abs=0.06)
+    assert out[0] > 0  # it backs away from where it pushed
+    q = ScriptedParticipant(np.random.default_rng(0), settings=s)
+    q._still_since, q._still_at, q._backoff_until = 0.0, (0.0, 0.0, 0.0), -math.inf
+    for k in range(1, 100):  # translating: never stuck
+        q._unstick(0.05 * k, Pose2D(0.01 * k, 0.0, 0.0), u)
+    assert q._stuck == 0

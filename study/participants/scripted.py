@@ -406,10 +406,10 @@ class ScriptedParticipant(ParticipantBase):
         s = self.settings
         if t < self._backoff_until:
             return self._backoff_u
-        x0, y0, yaw0 = self._still_at
-        moved = not (
-            math.hypot(pose.x - x0, pose.y - y0) < 0.02 and abs(wrap_angle(pose.yaw - yaw0)) < 0.03
-        )
+        x0, y0, _ = self._still_at
+        # the stick asks for translation: only translation counts as moving (an assistance
+        # that passes the turn alone, as OA does, leaves the robot just as stuck)
+        moved = math.hypot(pose.x - x0, pose.y - y0) >= 0.02
         if math.hypot(u[0], u[1]) < 0.05 or moved:
             self._still_since, self._still_at = t, (pose.x, pose.y, pose.yaw)
             return u
