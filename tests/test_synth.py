@@ -213,3 +213,39 @@ def test_cli_bad_input_is_one_line_and_exit_2(tmp_path):
     (tmp_path / "full" / "something").write_text("x")
     done = _cli("pilot", "--out", str(tmp_path / "full"))
     assert done.returncode == 2 and "--out" in done.stderr
+
+
+def test_no_recordings_same_rows_and_db_diff(tmp_path, seed):
+    """``asa synth --no-recordings``: no recording, every row as with recordings (``asa db
+    diff`` says identical, ``asa db check`` clean); a changed sample is found by the diff."""
+    proto = tmp_path / "tiny.toml"
+    proto.write_text(TINY)
+    s = seed % 100_000
+    with_rec, without = tmp_path / "rec" / "t.db", tmp_path / "norec" / "t.db"
+    run_synthetic_study(str(proto), with_rec, participants=1, seed=s, workers=1)
+    done = _cli(
+        "synth", "--protocol", str(proto), "--participants", "1", "--seed", str(s),
+        "--workers", "1", "--db", str(without), "--no-recordings",
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert list(with_rec.parent.rglob("*.rrd")) and not list(without.parent.rglob("*.rrd"))
+    engine = open_database(without, create=False)
+    with Session(engine) as sess:
+        assert set(sess.scalars(select(Trial.recording_path))) == {""}
+    engine.dispose()
+    assert check(without).clean, check(without).text()
+    same = _cli("db", "diff", str(with_rec), str(without))
+    assert same.returncode == 0 and "identical" in same.stdout, same.stdout + same.stderr
+    # one coordinate of one sample moved by a micrometre: found, and named
+    changed = tmp_path / "changed.db"
+    changed.write_bytes(without.read_bytes())
+    engine = open_database(changed, create=False, readonly=False)
+    with engine.begin() as conn:
+        conn.execute(Sample.__table__.update().where(Sample.id == 7).values(x=Sample.x + 1e-6))
+    engine.dispose()
+    found = _cli("db", "diff", str(without), str(changed))
+    assert found.returncode == 1 and "sample" in found.stdout and "7: x:" in found.stdout
+    within = _cli("db", "diff", str(without), str(changed), "--tolerance", "1e-5")
+    assert within.returncode == 0, within.stdout
+    bad = _cli("db", "diff", str(without), str(tmp_path / "missing.db"))
+    assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1

@@ -198,6 +198,18 @@ class RobotFrameComponents(Sequence[SemanticComponent]):
         """The pose the components are seen from."""
         return self._pose
 
+    @property
+    def prepared(self) -> bool:
+        """Whether the robot-frame coordinates were computed (the sequence was read)."""
+        return self._out is not None or self._seen is not None
+
+    def prepare(self) -> RobotFrameComponents:
+        """Compute the robot-frame coordinates now rather than when first read (the
+        per-stage clock of the trial loop times them apart from their reader)."""
+        if self._stacked() is None:
+            self.materialise()
+        return self
+
     def materialise(self) -> tuple[SemanticComponent, ...]:
         """The robot-frame components (computed on the first call)."""
         if self._seen is None:

@@ -21,7 +21,9 @@ from study.participants.synthetic import Population, SyntheticParticipant
 _SEED = 7061
 
 
-def _trial(folder: Path, timeout_s: float) -> dict:
+def _trial(folder: Path, timeout_s: float, *, record: bool = True) -> dict:
+    """One thesis main trial, contextual mode, synthetic participant: its figures (with
+    the ``synthetic_trial_`` prefix; ``record``: with the rerun recording)."""
     protocol = load_protocol("thesis-7-6")
     main = protocol.main
     rng = np.random.default_rng(_SEED)
@@ -42,8 +44,9 @@ def _trial(folder: Path, timeout_s: float) -> dict:
         secondary=protocol.secondary_settings,
         seed=_SEED,
         mode_settings=protocol.mode_settings.get("contextual_task", {}),
-        database="bench.db",
+        database="bench.db" if record else "bench_fast.db",
         on_tick=on_tick,
+        record=record,
     )
     wall, cpu = time.perf_counter() - first[0], time.process_time() - first[1]
     engine.dispose()
@@ -67,7 +70,9 @@ def run(quick: bool) -> dict:
         recording, in this one process; ``synthetic_trial_cpu_factor`` the same per CPU
         second of this process; ``synthetic_trial_simulated_s`` the trial's simulated
         length (with ``quick`` the trial is cut at 30 s); ``synthetic_trial_completed``;
-        or ``synthetic_trial_error``. ``synthetic_study_s``: wall seconds of
+        ``synthetic_trial_fast_factor`` and ``synthetic_trial_fast_cpu_factor`` the same
+        trial without its recording (``asa synth --no-recordings``: the power bank's
+        path); or ``synthetic_trial_error``. ``synthetic_study_s``: wall seconds of
         :func:`study.jobs.synth.run_synthetic_study` of the thesis protocol with 2
         workers, recordings included, for ``synthetic_study_participants`` participants
         (18, or 2 with ``quick``); ``synthetic_study_protocol``.
@@ -77,6 +82,9 @@ def run(quick: bool) -> dict:
         folder = Path(tmp)
         try:
             figures.update(_trial(folder, 30.0 if quick else 900.0))
+            fast = _trial(folder, 30.0 if quick else 900.0, record=False)
+            figures["synthetic_trial_fast_factor"] = fast["synthetic_trial_realtime_factor"]
+            figures["synthetic_trial_fast_cpu_factor"] = fast["synthetic_trial_cpu_factor"]
         except ValueError as error:  # e.g. a shipped model the mode cannot read
             figures["synthetic_trial_error"] = str(error)
         n = 2 if quick else 18

@@ -26,7 +26,8 @@ def bench(only: tuple[str, ...], as_json: bool, quick: bool) -> None:
     Headless, one core per measurement. Every group adds its keys to one JSON
     object, e.g. `sim_ticks_per_s`; `budgets` holds each budgeted figure's value,
     budget, comparison and whether it is met. Without --json: a table of group,
-    figure, value, budget and met.
+    figure, value, budget and met, and (group trial) where a tick's time goes: p50 /
+    p95 [ms] and share of the mean tick per stage, participant kind and mode.
     """
     unknown = [n for n in only if n not in GROUPS]
     if unknown:
@@ -46,7 +47,38 @@ def bench(only: tuple[str, ...], as_json: bool, quick: bool) -> None:
         return
     click.echo(f"machine  {json.dumps(figures['machine'])}")
     click.echo(f"quick    {json.dumps(quick)}")
-    _print_table(table_rows(per_group, figures["budgets"]))
+    rows = table_rows(per_group, figures["budgets"])
+    _print_table([row for row in rows if not row[1].startswith(_STAGES_PREFIX)])
+    _print_stages(figures)
+
+
+_STAGES_PREFIX = "trial_stages_"
+
+
+def _print_stages(figures: dict) -> None:
+    """The tick's stages: one row per stage, one column per participant kind and mode,
+    each cell ``p50 / p95 ms (share of the mean tick)``."""
+    order = ("manual", "reactive_bn", "contextual_task")
+
+    def position(key: str) -> tuple:
+        kind, _, mode = key[len(_STAGES_PREFIX) :].partition("_")
+        return (kind, order.index(mode) if mode in order else len(order), mode)
+
+    runs = sorted((k for k in figures if k.startswith(_STAGES_PREFIX) and figures[k]), key=position)
+    if not runs:
+        return
+    head = ["stage [ms]", *(k[len(_STAGES_PREFIX) :].replace("_", " ", 1) for k in runs)]
+    table = [head]
+    for stage in figures[runs[0]]:
+        cells = [stage]
+        for k in runs:
+            v = figures[k].get(stage, {})
+            cells.append(f"{v['p50_ms']:.3f} / {v['p95_ms']:.3f} ({100 * v['share']:.0f}%)")
+        table.append(cells)
+    widths = [max(len(row[i]) for row in table) for i in range(len(head))]
+    click.echo("\nwhere a tick's time goes (p50 / p95 [ms], share of the mean tick):")
+    for row in table:
+        click.echo("  ".join(c.ljust(w) for c, w in zip(row, widths, strict=True)).rstrip())
 
 
 def _print_table(rows: list[tuple[str, str, object, str, str]]) -> None:

@@ -4,7 +4,8 @@ of workers. One line per finished participant (with the live count) goes to stde
 summary to stdout. Started again after an interruption, it skips the participants already
 in the database and runs the others from scratch. One synthetic study writes a database at
 a time: a second one waits for the first. A study made with another protocol, seed or
-platform version is refused unless ``--force``."""
+platform version is refused unless ``--force``. ``--no-recordings`` records no trial: the
+same database without recording paths, for studies that need only the outcomes."""
 
 from __future__ import annotations
 
@@ -39,6 +40,13 @@ from study.cli import PARTICIPANTS, SEED, WORKERS, db_option, flag_errors
     help="Folder for the rerun recordings; default <db stem>_recordings beside the database.",
 )
 @click.option(
+    "--no-recordings",
+    "no_recordings",
+    is_flag=True,
+    help="Record no trial (faster; the database rows are the same, without recording paths): "
+    "for studies that need only the outcomes, e.g. pilots of a power analysis.",
+)
+@click.option(
     "--force",
     is_flag=True,
     help="Write into a study made with another protocol, seed or platform version "
@@ -51,6 +59,7 @@ def synth(
     workers: int | None,
     db: Path,
     recordings: Path | None,
+    no_recordings: bool,
     force: bool,
 ) -> None:
     """Run every participant's session of a protocol with synthetic participants.
@@ -74,6 +83,7 @@ def synth(
                 seed=seed,
                 workers=w,
                 recordings=recordings,
+                record=not no_recordings,
                 progress=lambda line: click.echo(line, err=True),
                 force=force,
             )

@@ -5,9 +5,10 @@ a trial's recording (``asa replay``).
 every finished trial (completed or timed out) has its samples (one per tick at 20 Hz,
 contiguous, as many as its duration asks, within two ticks), its start and end events,
 its outcome fields, its NASA-TLX answers where the protocol asks for them, and its
-recording, which passes ``rerun rrd verify`` (:func:`study.data.rrd.verify_many`); a
-timed-out trial's task is not completed; no orphan rows; no trial left ``running``
-outside a ``running`` session; no session or trial ``running`` without a live process
+recording (unless it was run without one: an empty path), which passes
+``rerun rrd verify`` (:func:`study.data.rrd.verify_many`); a timed-out trial's task is
+not completed; no orphan rows; no trial left ``running`` outside a ``running`` session;
+no session or trial ``running`` without a live process
 holding it (:mod:`study.data.locks`; else it was interrupted and is to be resumed); the
 questionnaires the stored protocol requires of a completed session; the order ledger
 consistent with the participants, every slot issued once (issue 20; :func:`_check_people`
@@ -390,8 +391,7 @@ def _check_recording(
     where: str,
     to_verify: list[tuple[Path, str]],
 ) -> None:
-    if not trial.recording_path:
-        problems.append(f"{where}: no recording path")
+    if not trial.recording_path:  # run without recordings (asa synth --no-recordings)
         return
     path = Path(trial.recording_path)
     path = path if path.is_absolute() else folder / path

@@ -467,11 +467,34 @@ class TrialRecorder:
         self.close()
 
 
+class NoRecording:
+    """Stands in for :class:`TrialRecorder` when a trial is not recorded (``asa synth
+    --no-recordings``): every call does nothing and no camera frame is ever due."""
+
+    path = None
+
+    def tick(self, *args: Any, **kwargs: Any) -> None:
+        """Nothing to record."""
+
+    def camera_due(self, t: float, pose: Any) -> bool:
+        return False
+
+    def event(self, t: float, kind: str, text: str = "") -> None:
+        """Nothing to record."""
+
+    def question(self, t: float, text: str) -> None:
+        """Nothing to record."""
+
+    def close(self) -> None:
+        """Nothing to close."""
+
+
 __all__ = [
     "COLOURS",
     "ENTITY",
     "RECORDING_NAMESPACE",
     "TIMELINE",
+    "NoRecording",
     "RecorderSettings",
     "TrialRecorder",
     "recording_id",

@@ -154,6 +154,7 @@ class SessionRunner:
         camera_hz: float,
         on_tick: Callable[[int, TrialWriter], None] | None,
         recordings: Path | None,
+        record: bool = True,
     ) -> None:
         self.protocol = protocol
         self.engine = engine
@@ -177,6 +178,7 @@ class SessionRunner:
         self.recordings = (
             recordings if recordings is not None else self.folder / f"{db_path.stem}_recordings"
         )
+        self.record = record  # False: no trial is recorded
         self.scenes = Scenes(self.recordings / "maps")
         self.study_tag = _study_tag(engine, person.study_id)
         self.trials: list[TrialSummary] = []
@@ -253,8 +255,14 @@ class SessionRunner:
             mode=mode,
             trial_values=values,
             recording_dir=self.folder,
-            recording_rel=lambda tid: recording_relpath(
-                self.folder, self.recordings, code, values, self.study_tag
+            recording_rel=(
+                (
+                    lambda tid: recording_relpath(
+                        self.folder, self.recordings, code, values, self.study_tag
+                    )
+                )
+                if self.record
+                else None
             ),
             session_id=self.session_id,
             clock=self.clock,

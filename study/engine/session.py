@@ -5,6 +5,7 @@ active mode is never shown to the participant."""
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import hashlib
 import re
 from collections.abc import Callable, Iterator, Sequence
@@ -64,6 +65,20 @@ class SessionSummary:
     resumed: bool
     forced: bool
     note: str
+
+
+@dataclass(frozen=True, slots=True)
+class _RunOptions:
+    """How a session runs, with :func:`run_session`'s defaults applied (the keyword
+    arguments of :class:`SessionRunner`)."""
+
+    progress: Callable[[str], None]
+    control: ExperimenterControl
+    clock: FreeClock | WallClock
+    camera_hz: float
+    on_tick: Callable[[int, TrialWriter], None] | None
+    recordings: Path | None
+    record: bool
 
 
 @dataclass(frozen=True, slots=True)
@@ -344,6 +359,7 @@ def run_session(
     camera_hz: float | None = None,
     on_tick: Callable[[int, TrialWriter], None] | None = None,
     recordings: str | Path | None = None,
+    record: bool = True,
     durable: bool = True,
     slot: int | None = None,
     lock: bool = True,
@@ -378,6 +394,9 @@ def run_session(
     recordings : str or Path, optional
         Folder for the rerun recordings (``<code>/...rrd`` inside it); default
         ``<db stem>_recordings`` beside the database; paths stored relative to its folder.
+    record : bool
+        False: no trial is recorded (``asa synth --no-recordings``): every trial's
+        ``recording_path`` is empty, every other row as with recordings.
     durable : bool
         False only for a scratch database thrown away after a crash (no fsync on commit,
         :func:`study.data.storage.open_database`): a synthetic study's per-participant file.
@@ -401,11 +420,20 @@ def run_session(
         the participant's session running in another process.
     """
     code = check_code(participant_code)
+    human = participant.kind == "human"
+    options = _RunOptions(
+        progress=progress if progress is not None else (lambda line: None),
+        control=control if control is not None else ExperimenterControl(),
+        clock=clock if clock is not None else (WallClock() if human else FreeClock()),
+        camera_hz=camera_hz if camera_hz is not None else protocol.recording.camera_hz,
+        on_tick=on_tick,
+        recordings=Path(recordings).resolve() if recordings is not None else None,
+        record=record,
+    )
     with _session_lock(db, code, lock):
         return _run_locked(
-            protocol, code, db, participant, seed, resume, force, progress, control,
-            clock, camera_hz, on_tick, recordings, durable, slot,
-        )  # fmt: skip
+            protocol, code, db, participant, seed, resume, force, durable, slot, options
+        )
 
 
 @contextlib.contextmanager
@@ -438,14 +466,9 @@ def _run_locked(
     seed: int | None,
     resume: bool,
     force: bool,
-    progress: Callable[[str], None] | None,
-    control: ExperimenterControl | None,
-    clock: FreeClock | WallClock | None,
-    camera_hz: float | None,
-    on_tick: Callable[[int, TrialWriter], None] | None,
-    recordings: str | Path | None,
     durable: bool,
     slot: int | None,
+    options: _RunOptions,
 ) -> SessionSummary:
     """:func:`run_session` once the session's lock is held."""
     engine = open_database(db, durable=durable)
@@ -454,44 +477,18 @@ def _run_locked(
             engine, protocol, code, db, participant,
             seed=seed, resume=resume, force=force, slot=slot,
         )  # fmt: skip
-        runner = _runner(
-            protocol, engine, db, participant, opened,
-            progress, control, clock, camera_hz, on_tick, recordings,
-        )  # fmt: skip
+        runner = SessionRunner(
+            protocol,
+            engine,
+            db,
+            participant,
+            _checked(opened, protocol, db),
+            opened.session_id,
+            **dataclasses.asdict(options),
+        )
         return _run(runner, code, opened)
     finally:
         engine.dispose()
-
-
-def _runner(
-    protocol: Protocol,
-    engine: Engine,
-    db: str | Path,
-    participant: SessionParticipant,
-    opened: _Opened,
-    progress: Callable[[str], None] | None,
-    control: ExperimenterControl | None,
-    clock: FreeClock | WallClock | None,
-    camera_hz: float | None,
-    on_tick: Callable[[int, TrialWriter], None] | None,
-    recordings: str | Path | None,
-) -> SessionRunner:
-    """The runner of the opened session, with :func:`run_session`'s defaults."""
-    human = participant.kind == "human"
-    return SessionRunner(
-        protocol,
-        engine,
-        db,
-        participant,
-        _checked(opened, protocol, db),
-        opened.session_id,
-        progress=progress if progress is not None else (lambda line: None),
-        control=control if control is not None else ExperimenterControl(),
-        clock=clock if clock is not None else (WallClock() if human else FreeClock()),
-        camera_hz=camera_hz if camera_hz is not None else protocol.recording.camera_hz,
-        on_tick=on_tick,
-        recordings=Path(recordings).resolve() if recordings is not None else None,
-    )
 
 
 def _run(runner: SessionRunner, code: str, opened: _Opened) -> SessionSummary:

@@ -18,6 +18,7 @@ from sim.semantics import derive_components
 from sim.world import World
 from study.data.storage import Participant as ParticipantRow
 from study.data.storage import SessionRow, Study, open_database
+from study.engine.stages import StageClock
 from study.engine.trial import Scene, TrialResult, TrialSpec, TrialWriter, run_trial
 from study.participants.base import Participant
 from tasks.primary import PrimarySettings
@@ -44,6 +45,8 @@ def standalone_trial(
     mode_settings: Mapping[str, Any] | None = None,
     wrap_mode: Callable[[Any], Any] | None = None,
     database: str = "trial.db",
+    record: bool = True,
+    stages: StageClock | None = None,
 ) -> tuple[TrialResult, Engine]:
     """Run one driving trial in a fresh database ``folder / database``.
 
@@ -60,7 +63,8 @@ def standalone_trial(
     seed : the trial's seed (world noise, questions) and the participant row's.
     camera_hz, camera_views : camera frames per second in the recording, and which cameras
         (:class:`study.engine.trial.TrialSpec`).
-    clock, control, on_tick : as :func:`study.engine.trial.run_trial`.
+    clock, control, on_tick, stages : as :func:`study.engine.trial.run_trial`.
+    record : write the rerun recording (else the trial has none, its rows unchanged).
 
     Returns
     -------
@@ -97,11 +101,12 @@ def standalone_trial(
             mode=built,
             trial_values=values,
             recording_dir=folder,
-            recording_rel=lambda tid: f"rec/trial_{tid}.rrd",
+            recording_rel=(lambda tid: f"rec/trial_{tid}.rrd") if record else None,
             session_id=session_id,
             clock=clock,
             control=control,
             on_tick=on_tick,
+            stages=stages,
         )
     return result, engine
 

@@ -25,10 +25,21 @@ from sim.scenario import Scenario, point_in_region
 from sim.types import Contact, Pose2D, SemanticComponent
 from sim.world import World
 from study.data.paths import file_in
-from study.data.recording import RecorderSettings, TrialRecorder
+from study.data.recording import NoRecording, RecorderSettings, TrialRecorder
 from study.engine.clocks import DT, ExperimenterControl, FreeClock, WallClock
 from study.engine.events import EventSink, TrialWriter, jsonable
 from study.engine.recognition import RecognitionTally
+from study.engine.stages import (
+    COMPONENTS,
+    DATABASE,
+    MODE,
+    PARTICIPANT,
+    PHYSICS,
+    RECORDING,
+    SENSING,
+    TASKS,
+    StageClock,
+)
 from study.participants.base import Participant
 from study.types import ParticipantInput, ScreenState, TickRecord, TrialInfo
 from tasks.clearance import RangeStats, lrf_range
@@ -170,14 +181,16 @@ class TrialLoop:
         mode: Mode | None,
         trial_values: dict[str, Any],
         recording_dir: Path,
-        recording_rel: Callable[[int], str],
+        recording_rel: Callable[[int], str] | None,
         session_id: int,
         clock: FreeClock | WallClock | None = None,
         control: ExperimenterControl | None = None,
         on_tick: Callable[[int, TrialWriter], None] | None = None,
         max_collisions: int | None = None,
+        stages: StageClock | None = None,
     ) -> None:
         self.spec, self.scene, self.participant, self.mode = spec, scene, participant, mode
+        self.stages = stages
         self.clock = clock if clock is not None else FreeClock()
         self.control = control if control is not None else ExperimenterControl()
         self.on_tick, self.max_collisions = on_tick, max_collisions
@@ -193,8 +206,10 @@ class TrialLoop:
         self.secondary = _secondary_task(spec, scenario, rng)
         self.time_limit = spec.primary.timeout_s if spec.primary is not None else math.inf
         self.writer = TrialWriter(engine, session_id)
-        self.trial_id = self.writer.start(trial_values, recording_rel)
-        self.rec_path = recording_dir / self.writer.recording_path
+        self.trial_id = self.writer.start(
+            trial_values, recording_rel if recording_rel is not None else (lambda tid: "")
+        )
+        self.rec_path = recording_dir / self.writer.recording_path if recording_rel else None
         self.trial_key = f"{trial_values['phase']}/{self.trial_id}"
         self.footprint = scenario.robot.footprint()
         self.lrf = RangeStats()  # Sec. 7.5's clearance, the laser's range from the centre
@@ -214,22 +229,15 @@ class TrialLoop:
         self.tally = RecognitionTally(table) if table is not None else None
         # the mode's effective settings, stored with the outcome (e.g. reactive arbitration)
         self.mode_settings = jsonable(mode.settings_dict()) if mode is not None else None
+        self._components_read = False  # the mode reads the components (stage clock only)
 
     # -------------------------------------------------------------- run
 
     def run(self) -> TrialResult:
         """Every tick to the trial's end; the outcome stored in one transaction."""
-        recorder: TrialRecorder | None = None
+        recorder: TrialRecorder | NoRecording | None = None
         try:
-            scene = self.scene
-            recorder = TrialRecorder(
-                self.rec_path,
-                trial_key=self.trial_key,
-                scenario=scene.scenario,
-                components=scene.components,
-                grid=scene.grid,
-                settings=replace(self.spec.recording, camera_hz=self.spec.camera_hz),
-            )
+            recorder = self._recorder()
             self.sink = EventSink(self.writer, recorder)
             self._begin()
             self.control.ticking = True
@@ -246,6 +254,20 @@ class TrialLoop:
             if recorder is not None:
                 recorder.close()
         return self._finish()
+
+    def _recorder(self) -> TrialRecorder | NoRecording:
+        """The trial's rerun recording, or none without a recording path."""
+        if self.rec_path is None:
+            return NoRecording()
+        scene = self.scene
+        return TrialRecorder(
+            self.rec_path,
+            trial_key=self.trial_key,
+            scenario=scene.scenario,
+            components=scene.components,
+            grid=scene.grid,
+            settings=replace(self.spec.recording, camera_hz=self.spec.camera_hz),
+        )
 
     def _begin(self) -> None:
         """Attach the participant to the trial's world and tell them what the trial is."""
@@ -273,9 +295,12 @@ class TrialLoop:
         """Ask the participant once per tick; pause, abort or simulate the tick."""
         spec, participant, control, clock = self.spec, self.participant, self.control, self.clock
         secondary, sink, on_tick = self.secondary, self.sink, self.on_tick
+        stages = self.stages
         assert sink is not None  # made by run()
         clock.start()
         while True:
+            if stages is not None:
+                stages.begin()
             question = secondary.current.text if secondary and secondary.current else None
             screen = ScreenState(
                 phase=spec.phase,
@@ -285,6 +310,8 @@ class TrialLoop:
                 t=self.t,
             )
             inp: ParticipantInput = participant.act(self.obs, screen)
+            if stages is not None:
+                stages.lap(PARTICIPANT)
             if inp.pause and control.paused:
                 control.resume()
             elif inp.pause:
@@ -296,6 +323,8 @@ class TrialLoop:
                 return
             if control.paused:
                 self._paused()
+                if stages is not None:
+                    stages.discard()
                 continue
             if self.was_paused:
                 sink(self.t, "resume")
@@ -308,6 +337,8 @@ class TrialLoop:
             done = self._tick(inp)
             if on_tick is not None:
                 on_tick(self.tick, self.writer)
+            if stages is not None:
+                stages.end()
             if done:
                 return
             clock.wait()
@@ -328,7 +359,9 @@ class TrialLoop:
 
     def _tick(self, inp: ParticipantInput) -> bool:
         """Simulate one tick and store it; True when the trial is done."""
-        spec, mode, world = self.spec, self.mode, self.scene.world
+        spec, mode, world, stages = self.spec, self.mode, self.scene.world, self.stages
+        if stages is not None:
+            stages.lap(TASKS)  # the answer to the question, if any
         u = np.asarray(inp.u, dtype=float)
         out: Assist | None
         if spec.baseline or mode is None:
@@ -338,18 +371,30 @@ class TrialLoop:
         else:
             out = mode.step(self.obs, u)
             v = out.v
+        if stages is not None:
+            stages.lap(MODE)
+            self._components_read = self._components_read or _prepared(self.obs)
         world.apply(v)
         started = world.step()
         t = self.t = world.t
         self.tick += 1
         tick = self.tick
+        if stages is not None:
+            stages.lap(PHYSICS)
         pose, velocity = world.true_pose(), world.true_velocity()
         obs = self.obs = world.sense()
+        if stages is not None:
+            stages.lap(SENSING)
+            if self._components_read:  # what the mode would compute first in its step
+                obs.components.prepare()
+            stages.lap(COMPONENTS)
         clearance = footprint_clearance(obs.points, self.footprint)
         self.lrf.add(lrf_range(obs.points))
         in_region = bool(point_in_region(self.scene.scenario, pose.x, pose.y))
         done = self._task_events(started, pose, velocity, clearance, in_region)
         task, target = self.participant.intention()
+        if stages is not None:
+            stages.lap(TASKS)
         record = TickRecord(
             tick=tick - 1,
             t=t,
@@ -367,12 +412,18 @@ class TrialLoop:
         self.writer.samples.append(record.row(self.trial_id))
         if self.tally is not None:
             self.tally.add(record.label, record.target, task, target)
+        if stages is not None:
+            stages.lap(DATABASE)
         assert self.sink is not None  # made by run()
         recorder = self.sink.recorder
         front, tail = self._camera_frames() if recorder.camera_due(t, pose) else (None, None)
         recorder.tick(t, pose, obs.points, u, record.v, assist=out, camera=front, tail_camera=tail)
+        if stages is not None:
+            stages.lap(RECORDING)
         if tick % FLUSH_EVERY_TICKS == 0:
             self.writer.flush(tick)
+            if stages is not None:
+                stages.lap(DATABASE)
         return done
 
     def _camera_frames(self) -> tuple[np.ndarray | None, np.ndarray | None]:
@@ -508,6 +559,11 @@ class TrialLoop:
         return TrialResult(self.trial_id, status, outcome, tick, t)
 
 
+def _prepared(obs: Any) -> bool:
+    """Whether ``obs``'s semantic components were put into the robot frame (read)."""
+    return bool(getattr(obs.components, "prepared", False))
+
+
 def _secondary_task(
     spec: TrialSpec, scenario: Scenario, rng: np.random.Generator
 ) -> SecondaryTask | None:
@@ -536,6 +592,7 @@ def run_trial(
     control: ExperimenterControl | None = None,
     on_tick: Callable[[int, TrialWriter], None] | None = None,
     max_collisions: int | None = None,
+    stages: StageClock | None = None,
 ) -> TrialResult:
     """Run one trial to its end and store it.
 
@@ -556,8 +613,9 @@ def run_trial(
         attempt, scenario, seed).
     recording_dir : Path
         Folder against which ``recording_rel(trial_id)`` is resolved (the database's).
-    recording_rel : callable
-        Trial id -> relative path of its ``.rrd`` file.
+    recording_rel : callable or None
+        Trial id -> relative path of its ``.rrd`` file; None: no recording (the trial's
+        ``recording_path`` is empty, every other row as with one).
     session_id : int
         For event rows.
     clock : FreeClock or WallClock, optional
@@ -570,6 +628,8 @@ def run_trial(
     max_collisions : int, optional
         Practice: the outcome gets ``passed`` (goal reached in time with at most this many
         collisions), stored in the completing transaction.
+    stages : StageClock, optional
+        Reads the time of every stage of every tick (``asa bench --only trial``).
 
     Returns
     -------
@@ -589,5 +649,6 @@ def run_trial(
         control=control,
         on_tick=on_tick,
         max_collisions=max_collisions,
+        stages=stages,
     )
     return loop.run()

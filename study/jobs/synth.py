@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import contextlib
+import dataclasses
 import multiprocessing
 import time
 from collections.abc import Callable
@@ -56,10 +57,11 @@ class _Job:
     behaviour_seed: int
     protocol: Protocol
     work_db: Path
-    recordings: Path
+    recordings: Path  # the study's folder of recordings (and of the scenes' maps)
     population: Population
     study_seed: int
     slot: int = 0  # the order slot reserved in the study database
+    record: bool = True  # False: no recordings (``asa synth --no-recordings``)
 
 
 @dataclass(frozen=True, slots=True)
@@ -108,6 +110,7 @@ def _run_job(job: _Job) -> _Done:
         participant=participant,
         seed=job.seed,
         recordings=job.recordings,
+        record=job.record,
         durable=False,  # the scratch file is deleted and rebuilt after a crash
         slot=job.slot,
         lock=False,  # the study's synth lock covers the scratch folder
@@ -146,6 +149,7 @@ def run_synthetic_study(
     seed: int,
     workers: int = 1,
     recordings: str | Path | None = None,
+    record: bool = True,
     progress: Callable[[str], None] | None = None,
     population: Population | None = None,
     force: bool = False,
@@ -169,6 +173,9 @@ def run_synthetic_study(
     recordings : str or Path, optional
         Folder for the recordings (``<code>/...rrd``); default ``<db stem>_recordings``
         beside the database.
+    record : bool
+        False: no recordings (the trials' ``recording_path`` empty, every other row the
+        same as with them): for studies that need only the outcomes, faster.
     progress : callable, optional
         One line per finished participant, with the live count; one line when another
         synthetic study holds the database and this one waits for it.
@@ -203,7 +210,8 @@ def run_synthetic_study(
         engine = open_database(db_path)
         try:
             merger = _study(engine, proto, db, codes, seed, force, work, rec, population, say)
-            _run_jobs(list(merger.jobs.values()), workers, merger.finish)
+            jobs = [dataclasses.replace(j, record=record) for j in merger.jobs.values()]
+            _run_jobs(jobs, workers, merger.finish)
         finally:
             engine.dispose()
     if not merger.order:
