@@ -300,9 +300,10 @@ def _semantics(r: FieldReader) -> SemanticSettings:
 def _inside(polygon: np.ndarray, x: float, y: float) -> bool:
     """Even-odd rule point-in-polygon."""
     inside = False
-    n = len(polygon)
+    corners = polygon.tolist()  # Python floats: the same arithmetic, without numpy scalars
+    n = len(corners)
     for i in range(n):
-        (x1, y1), (x2, y2) = polygon[i], polygon[(i + 1) % n]
+        (x1, y1), (x2, y2) = corners[i], corners[(i + 1) % n]
         if (y1 > y) != (y2 > y) and x < x1 + (y - y1) * (x2 - x1) / (y2 - y1):
             inside = not inside
     return inside

@@ -47,6 +47,7 @@ def _trial(folder: Path, timeout_s: float, *, record: bool = True) -> dict:
         database="bench.db" if record else "bench_fast.db",
         on_tick=on_tick,
         record=record,
+        durable=False,  # as asa synth writes each participant's scratch database
     )
     wall, cpu = time.perf_counter() - first[0], time.process_time() - first[1]
     engine.dispose()
@@ -66,8 +67,9 @@ def run(quick: bool) -> dict:
     dict
         ``synthetic_trial_realtime_factor``: simulated seconds per wall second of one
         thesis main trial (cluttered room, A -> B -> A with the inspection, secondary
-        questions) in the contextual-task mode, with SQLite logging and the rerun
-        recording, in this one process; ``synthetic_trial_cpu_factor`` the same per CPU
+        questions) in the contextual-task mode, with SQLite logging (into a scratch
+        database without fsync, as ``asa synth`` writes) and the rerun recording, in
+        this one process; ``synthetic_trial_cpu_factor`` the same per CPU
         second of this process; ``synthetic_trial_simulated_s`` the trial's simulated
         length (with ``quick`` the trial is cut at 30 s); ``synthetic_trial_completed``;
         ``synthetic_trial_fast_factor`` and ``synthetic_trial_fast_cpu_factor`` the same

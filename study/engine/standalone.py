@@ -47,6 +47,7 @@ def standalone_trial(
     database: str = "trial.db",
     record: bool = True,
     stages: StageClock | None = None,
+    durable: bool = True,
 ) -> tuple[TrialResult, Engine]:
     """Run one driving trial in a fresh database ``folder / database``.
 
@@ -65,6 +66,8 @@ def standalone_trial(
         (:class:`study.engine.trial.TrialSpec`).
     clock, control, on_tick, stages : as :func:`study.engine.trial.run_trial`.
     record : write the rerun recording (else the trial has none, its rows unchanged).
+    durable : False skips SQLite's fsync on commit, as a synthetic study's scratch
+        database does (:func:`study.data.storage.open_database`).
 
     Returns
     -------
@@ -77,7 +80,7 @@ def standalone_trial(
     built = make_mode(mode, **dict(mode_settings or {}))
     if wrap_mode is not None:
         built = with_defaults(wrap_mode(built))
-    engine = open_database(folder / database)
+    engine = open_database(folder / database, durable=durable)
     person_id, session_id = _parent_rows(engine, participant, mode, seed)
     spec = TrialSpec(
         phase=phase,
