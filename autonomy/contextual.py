@@ -24,7 +24,6 @@ from scipy.special import ndtr
 from autonomy import _kernels
 from autonomy.arbitration import blend
 from autonomy.dwa import DWASettings, dwa
-from autonomy.features import encode, task_features
 from autonomy.local_gmr import EM_MAX_ITER, EM_TOL, LocalGMR
 from autonomy.model import DEFAULT_MODEL, ContextualModel, load_model
 from autonomy.modes import register, settings_from
@@ -32,7 +31,7 @@ from autonomy.safety import safe_command
 from autonomy.sogp_classifier import argmax_finite
 from autonomy.task_types import TASK_TYPES, contextual_task, primitive_motions
 from autonomy.tracking import TrackingSettings, track
-from autonomy.types import EMPTY_PATH, Assist, Candidates, RobotModel, as_candidates
+from autonomy.types import EMPTY_PATH, Assist, RobotModel, as_candidates
 
 
 @dataclass(frozen=True, slots=True)
@@ -148,8 +147,9 @@ class Recogniser:
             self.n_basis_.append(n)
             self.sf2_[j] = float(gp["signal_var"])
             self.noise_[j] = float(gp["noise_var"])
-        # the same as contiguous (c, d), (c, b), (c,) arrays for the kernel
+        # the same as contiguous (c, d), (c, d, b), (c, b), (c,) arrays for the kernel
         self.ls2_ = np.ascontiguousarray(self.ls_[:, 0, :])
+        self.xs_t_ = np.ascontiguousarray(self.xs_.transpose(0, 2, 1))  # (c, d, b)
         self.xs2v_ = np.ascontiguousarray(self.xs2_[:, :, 0])
         self.sf2v_ = np.ascontiguousarray(self.sf2_[:, 0, 0])
 
@@ -170,7 +170,7 @@ class Recogniser:
         """
         Z = np.ascontiguousarray(np.atleast_2d(np.asarray(Z, dtype=float)))
         K = np.empty((len(self.n_basis_), self.xs_.shape[1], Z.shape[0]))
-        _kernels.sogp_kernels(Z, self.ls2_, self.xs_, self.xs2v_, self.sf2v_, K)  # Eq. (5.7)
+        _kernels.sogp_kernels(Z, self.ls2_, self.xs_t_, self.xs2v_, self.sf2v_, K)  # Eq. (5.7)
         mean = (self.alpha_ @ K)[:, 0, :].T  # (m, c), Eq. (5.6)
         i, j = argmax_finite(mean)  # Eq. (5.8), never a non-finite score
         if i < 0:
@@ -327,14 +327,6 @@ _NO_POINTS = np.empty((0, 3))
 # --------------------------------------------------------------------------- the mode
 
 
-def _nearest_candidates(candidates: Candidates, n: int) -> tuple[np.ndarray, np.ndarray]:
-    """The ``n`` candidates whose target points are nearest the robot (Sec. 5.1, 6.1):
-    (all target points (p, 2) [m]; the chosen indices, nearest first, ties by order)."""
-    targets = np.asarray(candidates.target_points(), dtype=float).reshape(-1, 2)
-    order = np.argsort(np.einsum("ij,ij->i", targets, targets), kind="stable")
-    return targets, order[:n]
-
-
 _RUNTIMES: dict[tuple, Runtime] = {}
 
 
@@ -479,10 +471,12 @@ class ContextualTaskMode:
 
         # 1. candidates: the nearest components by target point
         components = as_candidates(components)
-        targets, chosen = _nearest_candidates(components, s.candidates)
-        # 2. q* per candidate, encoded and standardised
-        q = task_features(targets[chosen], u_norm)
-        Z = rt.model.scaler.transform(encode(q))
+        # 2. q* per candidate, encoded and standardised (features.task_features, encode)
+        targets = np.ascontiguousarray(components.target_points(), dtype=float).reshape(-1, 2)
+        n = min(s.candidates, len(targets))
+        chosen, Z = np.empty(n, dtype=np.int64), np.empty((n, 7))
+        scaler = rt.model.scaler
+        _kernels.candidate_features(targets, n, u_norm, scaler.mean_, scaler.scale_, Z, chosen)
         # 3. recognition, Eqs. (5.6), (5.8), (5.10)
         i, cluster, beta, mean = rt.recogniser(Z)
         t_rec = time.perf_counter()

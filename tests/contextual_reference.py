@@ -27,7 +27,7 @@ from autonomy.local_gmr import (
 from autonomy.model import GMR_INPUT
 from autonomy.sogp_classifier import argmax_finite
 from autonomy.tracking import TrackingSettings
-from autonomy.types import RobotModel
+from autonomy.types import Candidates, RobotModel
 
 
 class RefLocalGMR:
@@ -359,3 +359,11 @@ def ref_track(
     v_xy = min(speed, max_speed) * direction
     omega = float(np.clip(yaw_l / t_l, -max_yaw_rate, max_yaw_rate))
     return np.array([v_xy[0], v_xy[1], omega])
+
+
+def _nearest_candidates(candidates: Candidates, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The ``n`` candidates whose target points are nearest the robot (Sec. 5.1, 6.1):
+    (all target points (p, 2) [m]; the chosen indices, nearest first, ties by order)."""
+    targets = np.asarray(candidates.target_points(), dtype=float).reshape(-1, 2)
+    order = np.argsort(np.einsum("ij,ij->i", targets, targets), kind="stable")
+    return targets, order[:n]
