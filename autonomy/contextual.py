@@ -169,8 +169,17 @@ class Recogniser:
             (m, c) posterior means (5.6).
         """
         Z = np.ascontiguousarray(np.atleast_2d(np.asarray(Z, dtype=float)))
-        K = np.empty((len(self.n_basis_), self.xs_.shape[1], Z.shape[0]))
-        _kernels.sogp_kernels(Z, self.ls2_, self.xs_t_, self.xs2v_, self.sf2v_, K)  # Eq. (5.7)
+        if len(Z) == 1:  # BLAS computes xs @ a.T as a gemv here, in another order
+            a = Z / self.ls_  # (c, 1, d)
+            sq = self.xs2_ + (a * a).sum(axis=2)[:, None, :]
+            sq -= 2.0 * (self.xs_ @ a.transpose(0, 2, 1))  # (c, b, 1)
+            np.maximum(sq, 0.0, out=sq)
+            sq *= -0.5
+            K = np.exp(sq, out=sq)
+            K *= self.sf2_  # Eq. (5.7)
+        else:
+            K = np.empty((len(self.n_basis_), self.xs_.shape[1], Z.shape[0]))
+            _kernels.sogp_kernels(Z, self.ls2_, self.xs_t_, self.xs2v_, self.sf2v_, K)
         mean = (self.alpha_ @ K)[:, 0, :].T  # (m, c), Eq. (5.6)
         i, j = argmax_finite(mean)  # Eq. (5.8), never a non-finite score
         if i < 0:
