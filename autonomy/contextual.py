@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 from scipy.special import ndtr
 
-from autonomy import _kernels
+from autonomy import _kernels, _tick_kernels
 from autonomy.arbitration import blend
 from autonomy.dwa import DWASettings, dwa
 from autonomy.local_gmr import EM_MAX_ITER, EM_TOL, LocalGMR
@@ -179,7 +179,7 @@ class Recogniser:
             K *= self.sf2_  # Eq. (5.7)
         else:
             K = np.empty((len(self.n_basis_), self.xs_.shape[1], Z.shape[0]))
-            _kernels.sogp_kernels(Z, self.ls2_, self.xs_t_, self.xs2v_, self.sf2v_, K)
+            _tick_kernels.sogp_kernels(Z, self.ls2_, self.xs_t_, self.xs2v_, self.sf2v_, K)
         mean = (self.alpha_ @ K)[:, 0, :].T  # (m, c), Eq. (5.6)
         i, j = argmax_finite(mean)  # Eq. (5.8), never a non-finite score
         if i < 0:
@@ -485,7 +485,7 @@ class ContextualTaskMode:
         n = min(s.candidates, len(targets))
         chosen, Z = np.empty(n, dtype=np.int64), np.empty((n, 7))
         scaler = rt.model.scaler
-        _kernels.candidate_features(targets, n, u_norm, scaler.mean_, scaler.scale_, Z, chosen)
+        _tick_kernels.candidate_features(targets, n, u_norm, scaler.mean_, scaler.scale_, Z, chosen)
         # 3. recognition, Eqs. (5.6), (5.8), (5.10)
         i, cluster, beta, mean = rt.recogniser(Z)
         t_rec = time.perf_counter()

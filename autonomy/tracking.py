@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from autonomy._kernels import track_kernel as _track_kernel
+from autonomy._tick_kernels import track_kernel as _track_kernel
 
 
 @dataclass(frozen=True, slots=True)
@@ -77,7 +77,7 @@ def track(
     """
     settings = TrackingSettings() if settings is None else settings
     path = np.ascontiguousarray(path, dtype=float).reshape(-1, 3)
-    # compiled (autonomy._kernels.track_kernel), the steps as numpy computed them before
+    # compiled (autonomy._tick_kernels.track_kernel), the steps as numpy computed them before
     # (tests/contextual_reference.py), operation by operation:
     # xy = (0, 0) and path[:, :2]; yaw = 0 and np.unwrap(path[:, 2]);
     # arc = 0 and np.cumsum(np.hypot(*np.diff(xy, axis=0).T)); total = arc[-1];

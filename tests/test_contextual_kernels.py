@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from numba import njit
 
-from autonomy import _kernels
+from autonomy import _kernels, _tick_kernels
 from autonomy.contextual import ContextualTaskMode, rollout
 from autonomy.features import encode, task_features
 from autonomy.local_gmr import LocalGMR, _features, _fit
@@ -146,7 +146,7 @@ def _features_new(mode, components, u):
     n = min(mode.settings.candidates, len(targets))
     chosen, z = np.empty(n, dtype=np.int64), np.empty((n, 7))
     scaler = mode.runtime_.model.scaler
-    _kernels.candidate_features(targets, n, u, scaler.mean_, scaler.scale_, z, chosen)
+    _tick_kernels.candidate_features(targets, n, u, scaler.mean_, scaler.scale_, z, chosen)
     return chosen, z
 
 
