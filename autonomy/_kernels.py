@@ -35,7 +35,6 @@ _LOG_2PI = math.log(2.0 * math.pi)
 _NK_EPS = 1e-12  # as autonomy.local_gmr
 _LOGE2 = math.log(2.0)  # numpy's NPY_LOGE2
 _DBL_MIN = 2.2250738585072014e-308
-NEED_POOL = 1  # rollout status: the kNN needs a pool from the tree (see rollout_kernel)
 
 
 @intrinsic
@@ -320,6 +319,45 @@ def pool_search(sx, sy, k, meta, pidx, prel, lru, ist, near) -> bool:
 
 
 @njit(cache=True)
+def fetch_pool(sx, sy, inputs, k, meta, pidx, prel, lru, ist, near) -> None:
+    """autonomy.local_gmr.LocalGMR's pool fetch: the ``P = pidx.shape[1]`` points of
+    ``inputs`` (N, 2) [m] nearest ``(sx, sy)``, nearest first (ties by index), found by
+    brute force with the distances the cKDTree computed (``dx dx + dy dy``; the same order
+    and radius as its ``query``), kept as the most recent pool (the oldest of ``POOLS``
+    dropped); their ``k`` nearest (sorted) into ``near``."""
+    n, rows = inputs.shape[0], pidx.shape[1]
+    bd = np.empty(rows)
+    bi = np.empty(rows, dtype=np.int64)
+    for t in range(n):
+        dx, dy = inputs[t, 0] - sx, inputs[t, 1] - sy
+        d = dx * dx + dy * dy
+        if t < rows:
+            pos = t
+        elif d < bd[rows - 1]:
+            pos = rows - 1
+        else:
+            continue
+        while pos > 0 and d < bd[pos - 1]:
+            bd[pos], bi[pos] = bd[pos - 1], bi[pos - 1]
+            pos -= 1
+        bd[pos], bi[pos] = d, t
+    pools = lru.shape[0]
+    slot = ist[0] if ist[0] < pools else lru[pools - 1]
+    ist[0] = min(ist[0] + 1, pools)
+    for t in range(pools - 1, 0, -1):
+        lru[t] = lru[t - 1]
+    lru[0] = slot
+    meta[slot, 0], meta[slot, 1] = sx, sy
+    meta[slot, 2] = math.inf if rows == n else math.sqrt(bd[rows - 1])
+    for p in range(rows):
+        pidx[slot, p] = bi[p]
+        rx, ry = inputs[bi[p], 0] - sx, inputs[bi[p], 1] - sy
+        prel[slot, p, 0], prel[slot, p, 1], prel[slot, p, 2] = rx, ry, rx * rx + ry * ry
+    near[:] = bi[:k]
+    near.sort()
+
+
+@njit(cache=True)
 def _slot(near, keys) -> int:
     """Hash slot of the sorted neighbour indices ``near`` in a table of ``len(keys)``
     (a power of two) rows."""
@@ -407,6 +445,15 @@ def predict_terms(t, ncomp, sx, sy) -> tuple[float, float, float]:
     )
 
 
+@njit(cache=True)
+def cache_rehash(keys, vals, used, new_keys, new_vals, new_used, ist) -> None:
+    """Move every entry of the fit cache into the larger arrays ``new_*``."""
+    ist[1] = 0
+    for i in range(len(used)):
+        if used[i]:
+            cache_put(keys[i], vals[i], used[i], new_keys, new_vals, new_used, ist)
+
+
 # --------------------------------------------------------------------------- rollout
 
 
@@ -416,26 +463,23 @@ def _clip1(v: float) -> float:
 
 
 @njit(cache=True)
-def rollout_kernel(gmr, geo, maha, fs, it, given, path, dists) -> int:
-    """Algorithm 3 as autonomy.contextual's Python rollout computed it, resumable.
+def rollout_kernel(gmr, geo, maha, fs, it, path, dists) -> None:
+    """Algorithm 3 as autonomy.contextual's Python rollout computed it.
 
     ``gmr``: the LocalGMR arrays (:meth:`autonomy.local_gmr.LocalGMR.kernel_state`);
     ``geo``: ``lifted`` (p, 3) the target's surface points with their squared norms (p = 0:
-    the fixed target ``fs[5:7]``); ``maha`` (7, 8) the Mahalanobis rows; ``fs``: floats
-    (x, y, yaw, pending sx, sy, s0x, s0y, max speed, max yaw rate, dt, stop); ``it``:
-    ints (steps cap, next step, path rows, distances); ``given`` (k,): the neighbours of
-    the pending query when ``it[4]`` is 1. Fills ``path`` (cap, 3) and ``dists`` (cap,).
-    Returns 0 when done, :data:`NEED_POOL` when the query ``fs[3:5]`` needs a pool from
-    the tree (the caller fetches it, puts the neighbours in ``given``, sets ``it[4]``).
+    the fixed target ``fs[3:5]``); ``maha`` (7, 8) the Mahalanobis rows; ``fs``: floats
+    (x, y, yaw, s0x, s0y, max speed, max yaw rate, dt, stop); ``it``: ints (steps cap,
+    path rows, distances). Fills ``path`` (cap, 3) and ``dists`` (cap,).
     """
-    k, features, origin, floor, tol, max_iter, cache_size = gmr[:7]
-    meta, pidx, prel, lru, ist, keys, vals, used, counts = gmr[7:]
+    k, inputs, features, origin, floor, tol, max_iter, cache_size = gmr[:8]
+    meta, pidx, prel, lru, ist, keys, vals, used, counts = gmr[8:]
     lifted = geo
     x, y, yaw = fs[0], fs[1], fs[2]
-    s0x, s0y, lim_v, lim_w, dt, stop = fs[5], fs[6], fs[7], fs[8], fs[9], fs[10]
+    s0x, s0y, lim_v, lim_w, dt, stop = fs[3], fs[4], fs[5], fs[6], fs[7], fs[8]
     npts = lifted.shape[0]
     near = np.empty(k, dtype=np.int64)
-    for step in range(it[1], it[0]):
+    for _ in range(it[0]):
         if npts:  # Alg. 3, line 9: s* seen from the rolled-out pose
             h0, h1 = -2.0 * x, -2.0 * y
             best, ib = 0.0, 0
@@ -448,13 +492,9 @@ def rollout_kernel(gmr, geo, maha, fs, it, given, path, dists) -> int:
             dx, dy = s0x - x, s0y - y
         c, s = math.cos(yaw), math.sin(yaw)
         sx, sy = c * dx + s * dy, -s * dx + c * dy
-        if it[4]:  # line 10, Alg. 2: the k nearest demonstration points
-            near[:] = given
-            it[4] = 0
-        elif not pool_search(sx, sy, k, meta, pidx, prel, lru, ist, near):
-            fs[0], fs[1], fs[2], fs[3], fs[4] = x, y, yaw, sx, sy
-            it[1] = step
-            return NEED_POOL
+        # line 10, Alg. 2: the k nearest demonstration points, their local fit, u*
+        if not pool_search(sx, sy, k, meta, pidx, prel, lru, ist, near):
+            fetch_pool(sx, sy, inputs, k, meta, pidx, prel, lru, ist, near)
         row = local_terms(
             near, features, origin, floor, tol, max_iter, cache_size, keys, vals, used, ist, counts
         )
@@ -473,8 +513,8 @@ def rollout_kernel(gmr, geo, maha, fs, it, given, path, dists) -> int:
             e = e + a[6] * uw + a[7]
             dist2 += e * e
         dist = math.sqrt(dist2)  # line 12, Eq. (6.3)
-        dists[it[3]] = dist
-        it[3] += 1
+        dists[it[2]] = dist
+        it[2] += 1
         if dist > stop:
             break
         vx, vy, w = ux * lim_v, uy * lim_v, uw * lim_w
@@ -483,16 +523,5 @@ def rollout_kernel(gmr, geo, maha, fs, it, given, path, dists) -> int:
         x += (c * vx - s * vy) * dt
         y += (s * vx + c * vy) * dt
         yaw += w * dt
-        path[it[2], 0], path[it[2], 1], path[it[2], 2] = x, y, yaw
-        it[2] += 1
-    it[1] = it[0]
-    return 0
-
-
-@njit(cache=True)
-def cache_rehash(keys, vals, used, new_keys, new_vals, new_used, ist) -> None:
-    """Move every entry of the fit cache into the larger arrays ``new_*``."""
-    ist[1] = 0
-    for i in range(len(used)):
-        if used[i]:
-            cache_put(keys[i], vals[i], used[i], new_keys, new_vals, new_used, ist)
+        path[it[1], 0], path[it[1], 1], path[it[1], 2] = x, y, yaw
+        it[1] += 1

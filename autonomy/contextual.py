@@ -313,21 +313,14 @@ def rollout(
         lifted = _NO_POINTS
     cap = settings.rollout_steps
     fs = np.array(
-        (0.0, 0.0, 0.0, 0.0, 0.0, s0x, s0y)
-        + (float(robot.max_speed), float(robot.max_yaw_rate), settings.dt)
-        + (float(settings.mahalanobis_stop),)
+        (0.0, 0.0, 0.0, s0x, s0y, float(robot.max_speed), float(robot.max_yaw_rate))
+        + (float(settings.dt), float(settings.mahalanobis_stop))
     )
-    it = np.array((cap, 0, 0, 0, 0), dtype=np.int64)  # cap, step, path rows, dists, given
-    given = np.empty(gmr.k, dtype=np.int64)
+    it = np.array((cap, 0, 0), dtype=np.int64)  # steps cap, path rows, distances
     path, dists = np.empty((cap, 3)), np.empty(cap)
     gmr.cache_.reserve(cap)
-    while _kernels.rollout_kernel(
-        gmr.kernel_state(), lifted, runtime.mahalanobis[j], fs, it, given, path, dists
-    ):  # a query no kept pool answers: fetch one from the tree, resume
-        given[:] = gmr.fetch_pool(float(fs[3]), float(fs[4]))
-        it[4] = 1
-        gmr.cache_.reserve(cap)
-    return path[: it[2]].copy(), dists[: it[3]].copy()
+    _kernels.rollout_kernel(gmr.kernel_state(), lifted, runtime.mahalanobis[j], fs, it, path, dists)
+    return path[: it[1]].copy(), dists[: it[2]].copy()
 
 
 _NO_POINTS = np.empty((0, 3))

@@ -10,7 +10,6 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from autonomy import _kernels
 from autonomy.gmr import data_scale
@@ -262,7 +261,6 @@ class LocalGMR:
         self.scale_ = data_scale(self.points_)  # for the relative variance floor
         self.floor_ = (1e-3 * self.scale_).tolist()  # as local_gmm's default reg
         self.inputs_ = np.ascontiguousarray(self.points_[:, list(GMR_INPUT)])  # (N, 2) [m]
-        self.tree_ = cKDTree(self.inputs_)
         self.k = min(int(k), len(self.points_))
         self.tol = float(tol)
         self.max_iter = max_iter
@@ -271,7 +269,6 @@ class LocalGMR:
         self.pool_size = min(POOL_FACTOR * self.k, len(self.points_))
         self.origin_ = self.points_.mean(axis=0)  # (5,) origin of the local fits' sums
         self.features_ = np.ascontiguousarray(_features(self.points_ - self.origin_))  # (N, 11)
-        self._centre = np.empty(2)  # work array of the tree query
         # the last POOLS pools (see _key): centre x, y and radius [m]; the indices of the
         # pool_size points; (p - c, |p - c|^2) of each; the slots, most recent first
         self._meta = np.zeros((POOLS, 3))
@@ -286,6 +283,7 @@ class LocalGMR:
         c = self.cache_
         return (
             self.k,
+            self.inputs_,
             self.features_,
             self.origin_,
             np.asarray(self.floor_, dtype=float),
@@ -311,7 +309,7 @@ class LocalGMR:
         k-th nearest pool point lies closer than ``radius - |q - c|``, every point outside
         the pool is farther. The last ``POOLS`` pools are kept (a rollout starts near
         where the previous one started); without one that answers, a pool is fetched
-        around ``q`` from the tree (:meth:`fetch_pool`).
+        around ``q`` (:meth:`fetch_pool`).
         """
         near = np.empty(self.k, dtype=np.int64)
         args = (self._meta, self._pidx, self._prel, self._lru, self._ist, near)
@@ -320,26 +318,14 @@ class LocalGMR:
         return near.astype(np.intp).tobytes()
 
     def fetch_pool(self, sx: float, sy: float) -> np.ndarray:
-        """Fetch the pool around ``(sx, sy)`` from the tree, keep it as the most recent
-        (dropping the oldest beyond ``POOLS``); returns the ``k`` nearest (sorted, int64)."""
-        c = self._centre
-        c[0], c[1] = sx, sy
-        dist, idx = self.tree_.query(c, k=self.pool_size)
-        if self.pool_size == 1:
-            dist, idx = np.atleast_1d(dist), np.atleast_1d(idx)
-        radius = math.inf if self.pool_size == len(self.inputs_) else dist.item(-1)
-        rel = np.empty((len(idx), 3))  # (p - c, |p - c|^2)
-        np.subtract(self.inputs_.take(idx, axis=0), c, out=rel[:, :2])
-        np.einsum("ij,ij->i", rel[:, :2], rel[:, :2], out=rel[:, 2])
-        n = int(self._ist[0])
-        slot = n if n < POOLS else int(self._lru[POOLS - 1])
-        self._ist[0] = min(n + 1, POOLS)
-        self._lru[1:] = self._lru[:-1].copy()
-        self._lru[0] = slot
-        self._meta[slot] = (sx, sy, radius)
-        self._pidx[slot] = idx
-        self._prel[slot] = rel
-        return np.sort(idx[: self.k]).astype(np.int64)
+        """Fetch the pool around ``(sx, sy)`` (the ``pool_size`` nearest points, as a
+        cKDTree query would give them, :func:`autonomy._kernels.fetch_pool`), keep it as
+        the most recent (dropping the oldest beyond ``POOLS``); returns the ``k`` nearest
+        (sorted, int64)."""
+        near = np.empty(self.k, dtype=np.int64)
+        args = (self._meta, self._pidx, self._prel, self._lru, self._ist, near)
+        _kernels.fetch_pool(float(sx), float(sy), self.inputs_, self.k, *args)
+        return near
 
     def _terms(self, key: bytes) -> tuple[tuple[float, ...], ...]:
         """The local fit of the neighbour set ``key`` as per-component constants of
@@ -350,7 +336,7 @@ class LocalGMR:
         c = self.cache_
         row = _kernels.local_terms(
             near,
-            *self.kernel_state()[1:7],
+            *self.kernel_state()[2:8],
             c.keys,
             c.vals,
             c.used,
