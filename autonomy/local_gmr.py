@@ -10,6 +10,7 @@ import math
 from typing import NamedTuple
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from autonomy import _kernels
 from autonomy.gmr import data_scale
@@ -261,6 +262,7 @@ class LocalGMR:
         self.scale_ = data_scale(self.points_)  # for the relative variance floor
         self.floor_ = (1e-3 * self.scale_).tolist()  # as local_gmm's default reg
         self.inputs_ = np.ascontiguousarray(self.points_[:, list(GMR_INPUT)])  # (N, 2) [m]
+        self.tree_ = cKDTree(self.inputs_)  # for callers; the pools are found by brute force
         self.k = min(int(k), len(self.points_))
         self.tol = float(tol)
         self.max_iter = max_iter

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from numba import njit
+from scipy.spatial import cKDTree
 
 from autonomy import _kernels, _tick_kernels
 from autonomy.contextual import ContextualTaskMode, rollout
@@ -107,6 +108,22 @@ def test_local_gmr_equals_the_python_gmr(rng, k):
         assert new.predict_xy(sx, sy) == old.predict_xy(sx, sy)
         assert len(new.cache_) == len(old.cache_)
     assert new.n_iter_counts_.tolist() == old.n_iter_counts_
+
+
+def test_pool_fetch_equals_the_tree_query(rng):
+    """The kernel's brute-force pool: the cKDTree's points, in its order, and its radius,
+    on the shipped model's primitives (queries near and far from the data)."""
+    mode = ContextualTaskMode()
+    for gmr in mode.runtime_.gmrs:
+        tree, x = cKDTree(gmr.inputs_), gmr.inputs_
+        for _ in range(40):
+            c = x[rng.integers(len(x))] + rng.normal(scale=rng.choice([0.01, 0.3, 2.0]), size=2)
+            dist, idx = tree.query(c, k=gmr.pool_size)
+            near = gmr.fetch_pool(float(c[0]), float(c[1]))
+            slot = gmr._lru[0]
+            assert gmr._pidx[slot].tolist() == idx.tolist()
+            assert gmr._meta[slot, 2] == dist[-1]
+            assert near.tolist() == sorted(idx[: gmr.k].tolist())
 
 
 # --------------------------------------------------------------------------- the mode
