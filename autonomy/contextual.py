@@ -21,9 +21,9 @@ from typing import Any
 import numpy as np
 from scipy.special import ndtr
 
+from autonomy import _kernels, _tick_kernels
 from autonomy.arbitration import blend
 from autonomy.dwa import DWASettings, dwa
-from autonomy.features import encode, task_features
 from autonomy.local_gmr import EM_MAX_ITER, EM_TOL, LocalGMR
 from autonomy.model import DEFAULT_MODEL, ContextualModel, load_model
 from autonomy.modes import register, settings_from
@@ -31,7 +31,7 @@ from autonomy.safety import safe_command
 from autonomy.sogp_classifier import argmax_finite
 from autonomy.task_types import TASK_TYPES, contextual_task, primitive_motions
 from autonomy.tracking import TrackingSettings, track
-from autonomy.types import EMPTY_PATH, Assist, Candidates, RobotModel, as_candidates
+from autonomy.types import EMPTY_PATH, Assist, RobotModel, as_candidates
 
 
 @dataclass(frozen=True, slots=True)
@@ -118,7 +118,9 @@ class Recogniser:
     variance only for the winning candidate and cluster. The clusters' basis vectors are
     stacked at load time (zero-padded to the largest basis, padded rows with ``alpha = 0``
     and zero rows and columns of ``C``, which add exact zeros), so one tick evaluates the
-    kernels of all clusters in a few batched array operations.
+    kernels of all clusters in one compiled loop (:func:`autonomy._tick_kernels.sogp_kernels`,
+    the numpy arithmetic it replaced kept for a single candidate) and the means in one
+    batched product.
     """
 
     def __init__(self, sogp: dict[str, Any]) -> None:
@@ -147,6 +149,11 @@ class Recogniser:
             self.n_basis_.append(n)
             self.sf2_[j] = float(gp["signal_var"])
             self.noise_[j] = float(gp["noise_var"])
+        # the same as contiguous (c, d), (c, d, b), (c, b), (c,) arrays for the kernel
+        self.ls2_ = np.ascontiguousarray(self.ls_[:, 0, :])
+        self.xs_t_ = np.ascontiguousarray(self.xs_.transpose(0, 2, 1))  # (c, d, b)
+        self.xs2v_ = np.ascontiguousarray(self.xs2_[:, :, 0])
+        self.sf2v_ = np.ascontiguousarray(self.sf2_[:, 0, 0])
 
     def __call__(self, Z: np.ndarray) -> tuple[int, int, float, np.ndarray]:
         """Recognise over the rows of ``Z`` (m, d), standardised encoded features.
@@ -163,14 +170,18 @@ class Recogniser:
         mean : numpy.ndarray
             (m, c) posterior means (5.6).
         """
-        Z = np.atleast_2d(np.asarray(Z, dtype=float))
-        a = Z / self.ls_  # (c, m, d)
-        sq = self.xs2_ + (a * a).sum(axis=2)[:, None, :]
-        sq -= 2.0 * (self.xs_ @ a.transpose(0, 2, 1))  # (c, b, m)
-        np.maximum(sq, 0.0, out=sq)
-        sq *= -0.5
-        K = np.exp(sq, out=sq)
-        K *= self.sf2_  # Eq. (5.7)
+        Z = np.ascontiguousarray(np.atleast_2d(np.asarray(Z, dtype=float)))
+        if len(Z) == 1:  # BLAS computes xs @ a.T as a gemv here, in another order
+            a = Z / self.ls_  # (c, 1, d)
+            sq = self.xs2_ + (a * a).sum(axis=2)[:, None, :]
+            sq -= 2.0 * (self.xs_ @ a.transpose(0, 2, 1))  # (c, b, 1)
+            np.maximum(sq, 0.0, out=sq)
+            sq *= -0.5
+            K = np.exp(sq, out=sq)
+            K *= self.sf2_  # Eq. (5.7)
+        else:
+            K = np.empty((len(self.n_basis_), self.xs_.shape[1], Z.shape[0]))
+            _tick_kernels.sogp_kernels(Z, self.ls2_, self.xs_t_, self.xs2v_, self.sf2v_, K)
         mean = (self.alpha_ @ K)[:, 0, :].T  # (m, c), Eq. (5.6)
         i, j = argmax_finite(mean)  # Eq. (5.8), never a non-finite score
         if i < 0:
@@ -248,11 +259,6 @@ def _target_from(
     return c * dx + s * dy, -s * dx + c * dy
 
 
-def _clip1(value: float) -> float:
-    """``value`` clipped to [-1, 1] (NaN stays NaN, as with ``numpy.clip``)."""
-    return -1.0 if value < -1.0 else (1.0 if value > 1.0 else value)
-
-
 def _target_geometry(component: Any) -> tuple[np.ndarray | None, float, float]:
     """How the rollout sees ``component``'s target: an object's or wall's surface points
     (p, 2) [m], robot frame, whose nearest to the rolled-out pose is the target, else
@@ -274,6 +280,14 @@ def rollout(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Algorithm 3: the local trajectory predicted for a recognised primitive and target.
 
+    Computed by :func:`autonomy._kernels.rollout_kernel` (the loop written out in
+    scalar arithmetic, bit-identical to the Python loop it replaced, kept in
+    tests/contextual_reference.py): per step the target point ``s*`` seen from the
+    rolled-out pose (line 9), the fast online GMR ``u*`` (line 10, Alg. 2), ``q_est``
+    encoded as :func:`autonomy.features.encode` does (line 11), its Mahalanobis distance
+    (6.3) to the primitive (line 12; stop above ``mahalanobis_stop``) and a holonomic
+    step with the mid-step heading (line 14).
+
     Parameters
     ----------
     runtime : Runtime
@@ -294,66 +308,27 @@ def rollout(
     """
     j = runtime.row[int(cluster)]
     gmr = runtime.gmrs[j]
-    # e = W ((z - mean_) / scale_ - mu) = A (z, 1), row by row in scalar arithmetic
-    rows = runtime.mahalanobis[j].tolist()
     points, s0x, s0y = _target_geometry(component)
     if points is not None:  # |p - h|^2 - |h|^2 = (p, |p|^2) . (-2 h, 1): one product
-        surface = points.tolist()
         lifted = np.column_stack((points, np.einsum("ij,ij->i", points, points)))
-        here = np.ones(3)
-    lim_v, lim_w = float(robot.max_speed), float(robot.max_yaw_rate)
-    dt, stop = settings.dt, settings.mahalanobis_stop
-    cos, sin, atan2, hypot, sqrt = math.cos, math.sin, math.atan2, math.hypot, math.sqrt
-    x = y = yaw = 0.0
-    path, dists = [], []
-    for _ in range(settings.rollout_steps):
-        # Alg. 3, line 9: s* seen from the rolled-out pose
-        if points is not None:
-            here[0], here[1] = -2.0 * x, -2.0 * y
-            px, py = surface[lifted.dot(here).argmin()]
-            dx, dy = px - x, py - y
-        else:
-            dx, dy = s0x - x, s0y - y
-        c, s = cos(yaw), sin(yaw)
-        sx, sy = c * dx + s * dy, -s * dx + c * dy
-        ux, uy, uw = gmr.predict_xy(sx, sy)  # line 10: the fast online GMR, Alg. 2
-        ux, uy, uw = _clip1(ux), _clip1(uy), _clip1(uw)
-        speed = hypot(ux, uy)
-        # line 11: q_est = (s*, theta*, u*), encoded as autonomy.features.encode does:
-        # |u_xy| (cos theta, sin theta), (0, 0) without translational input
-        if speed >= 1e-6 and hypot(sx, sy) >= 1e-9:
-            theta = atan2(uy, ux) - atan2(sy, sx)
-            ct, st = speed * cos(theta), speed * sin(theta)
-        else:
-            ct, st = speed, 0.0
-        dist2 = 0.0
-        for a0, a1, a2, a3, a4, a5, a6, a7 in rows:
-            e = a0 * sx + a1 * sy + a2 * ct + a3 * st + a4 * ux + a5 * uy + a6 * uw + a7
-            dist2 += e * e
-        dist = sqrt(dist2)  # line 12, Eq. (6.3)
-        dists.append(dist)
-        if dist > stop:
-            break
-        vx, vy, w = ux * lim_v, uy * lim_v, uw * lim_w
-        mid = yaw + 0.5 * w * dt  # line 14: holonomic kinematics, mid-step heading
-        c, s = cos(mid), sin(mid)
-        x += (c * vx - s * vy) * dt
-        y += (s * vx + c * vy) * dt
-        yaw += w * dt
-        path.append((x, y, yaw))  # line 15
-    out = np.array(path, dtype=float).reshape(-1, 3)
-    return out, np.array(dists)
+    else:
+        lifted = _NO_POINTS
+    cap = settings.rollout_steps
+    fs = np.array(
+        (0.0, 0.0, 0.0, s0x, s0y, float(robot.max_speed), float(robot.max_yaw_rate))
+        + (float(settings.dt), float(settings.mahalanobis_stop))
+    )
+    it = np.array((cap, 0, 0), dtype=np.int64)  # steps cap, path rows, distances
+    path, dists = np.empty((cap, 3)), np.empty(cap)
+    gmr.cache_.reserve(cap)
+    _kernels.rollout_kernel(gmr.kernel_state(), lifted, runtime.mahalanobis[j], fs, it, path, dists)
+    return path[: it[1]].copy(), dists[: it[2]].copy()
+
+
+_NO_POINTS = np.empty((0, 3))
 
 
 # --------------------------------------------------------------------------- the mode
-
-
-def _nearest_candidates(candidates: Candidates, n: int) -> tuple[np.ndarray, np.ndarray]:
-    """The ``n`` candidates whose target points are nearest the robot (Sec. 5.1, 6.1):
-    (all target points (p, 2) [m]; the chosen indices, nearest first, ties by order)."""
-    targets = np.asarray(candidates.target_points(), dtype=float).reshape(-1, 2)
-    order = np.argsort(np.einsum("ij,ij->i", targets, targets), kind="stable")
-    return targets, order[:n]
 
 
 _RUNTIMES: dict[tuple, Runtime] = {}
@@ -500,10 +475,12 @@ class ContextualTaskMode:
 
         # 1. candidates: the nearest components by target point
         components = as_candidates(components)
-        targets, chosen = _nearest_candidates(components, s.candidates)
-        # 2. q* per candidate, encoded and standardised
-        q = task_features(targets[chosen], u_norm)
-        Z = rt.model.scaler.transform(encode(q))
+        # 2. q* per candidate, encoded and standardised (features.task_features, encode)
+        targets = np.ascontiguousarray(components.target_points(), dtype=float).reshape(-1, 2)
+        n = min(s.candidates, len(targets))
+        chosen, Z = np.empty(n, dtype=np.int64), np.empty((n, 7))
+        scaler = rt.model.scaler
+        _tick_kernels.candidate_features(targets, n, u_norm, scaler.mean_, scaler.scale_, Z, chosen)
         # 3. recognition, Eqs. (5.6), (5.8), (5.10)
         i, cluster, beta, mean = rt.recogniser(Z)
         t_rec = time.perf_counter()

@@ -12,6 +12,7 @@ from typing import NamedTuple
 import numpy as np
 from scipy.spatial import cKDTree
 
+from autonomy import _kernels
 from autonomy.gmr import data_scale
 from autonomy.model import GMR_INPUT
 
@@ -188,8 +189,43 @@ def local_gmm(
     return LocalMixture(np.exp(log_w), mu + origin, var, n_iter, converged)
 
 
+class _FitCache:
+    """The local fits of :class:`LocalGMR` by neighbour set, as arrays a kernel reads:
+    an open-addressing table of ``keys`` (cap, k) sorted neighbour indices, ``vals``
+    (cap, 18) per-component terms (see :meth:`LocalGMR._terms`), ``used`` (cap,) the
+    number of components (0: empty); ``ist[1]`` entries (``ist`` is shared with the
+    pools). Cleared when ``size`` entries are stored and another comes."""
+
+    def __init__(self, k: int, size: int, ist: np.ndarray) -> None:
+        self.size, self.ist = size, ist
+        self._alloc(k, 1024)
+
+    def _alloc(self, k: int, cap: int) -> None:
+        self.keys = np.zeros((cap, k), dtype=np.int64)
+        self.vals = np.zeros((cap, 18))
+        self.used = np.zeros(cap, dtype=np.int64)
+
+    def __len__(self) -> int:
+        return int(self.ist[1])
+
+    def reserve(self, n: int) -> None:
+        """Room for ``n`` more entries at a load of at most one half."""
+        cap = len(self.used)
+        if 2 * (min(int(self.ist[1]), self.size) + n) <= cap:
+            return
+        old = (self.keys, self.vals, self.used)
+        while 2 * (min(int(self.ist[1]), self.size) + n) > cap:
+            cap *= 2
+        self._alloc(self.keys.shape[1], cap)
+        _kernels.cache_rehash(*old, self.keys, self.vals, self.used, self.ist)
+
+
 class LocalGMR:
     """Fast online GMR of one primitive (Alg. 2) with a per-neighbour-set cache.
+
+    The state (kNN pools, fit cache, counts) lives in arrays that the compiled rollout
+    (:func:`autonomy._kernels.rollout_kernel`) reads and updates; the methods here give
+    the same answers one query at a time.
 
     Parameters
     ----------
@@ -204,8 +240,8 @@ class LocalGMR:
 
     Attributes
     ----------
-    n_iter_counts_ : list of int
-        (max_iter + 1,) number of local fits made with each EM iteration count.
+    n_iter_counts_ : numpy.ndarray
+        (max_iter + 1,) int64, number of local fits made with each EM iteration count.
     """
 
     def __init__(
@@ -226,19 +262,46 @@ class LocalGMR:
         self.scale_ = data_scale(self.points_)  # for the relative variance floor
         self.floor_ = (1e-3 * self.scale_).tolist()  # as local_gmm's default reg
         self.inputs_ = np.ascontiguousarray(self.points_[:, list(GMR_INPUT)])  # (N, 2) [m]
-        self.tree_ = cKDTree(self.inputs_)
+        self.tree_ = cKDTree(self.inputs_)  # for callers; the pools are found by brute force
         self.k = min(int(k), len(self.points_))
-        self.tol = tol
+        self.tol = float(tol)
         self.max_iter = max_iter
         self.cache_size = int(cache_size)
-        self.cache_: dict[bytes, tuple[tuple[float, ...], ...]] = {}
-        self.n_iter_counts_ = [0] * (max_iter + 1)
+        self.n_iter_counts_ = np.zeros(max_iter + 1, dtype=np.int64)
         self.pool_size = min(POOL_FACTOR * self.k, len(self.points_))
         self.origin_ = self.points_.mean(axis=0)  # (5,) origin of the local fits' sums
-        self.features_ = _features(self.points_ - self.origin_)  # (N, 11), see _fit
-        self._query = np.ones(3)  # work arrays of the kNN search
-        self._centre = np.empty(2)
-        self._pools: list[tuple] = []  # (centre x, y [m], radius [m], indices, see _key)
+        self.features_ = np.ascontiguousarray(_features(self.points_ - self.origin_))  # (N, 11)
+        # the last POOLS pools (see _key): centre x, y and radius [m]; the indices of the
+        # pool_size points; (p - c, |p - c|^2) of each; the slots, most recent first
+        self._meta = np.zeros((POOLS, 3))
+        self._pidx = np.zeros((POOLS, self.pool_size), dtype=np.int64)
+        self._prel = np.zeros((POOLS, self.pool_size, 3))
+        self._lru = np.zeros(POOLS, dtype=np.int64)
+        self._ist = np.zeros(2, dtype=np.int64)  # pools kept, fits cached
+        self.cache_ = _FitCache(self.k, self.cache_size, self._ist)
+
+    def kernel_state(self) -> tuple:
+        """The arrays and settings :func:`autonomy._kernels.rollout_kernel` takes."""
+        c = self.cache_
+        return (
+            self.k,
+            self.inputs_,
+            self.features_,
+            self.origin_,
+            np.asarray(self.floor_, dtype=float),
+            self.tol,
+            self.max_iter,
+            self.cache_size,
+            self._meta,
+            self._pidx,
+            self._prel,
+            self._lru,
+            self._ist,
+            c.keys,
+            c.vals,
+            c.used,
+            self.n_iter_counts_,
+        )
 
     def _key(self, sx: float, sy: float) -> bytes:
         """The sorted indices of the ``k`` points nearest ``(sx, sy)`` (Alg. 2), as bytes.
@@ -248,64 +311,42 @@ class LocalGMR:
         k-th nearest pool point lies closer than ``radius - |q - c|``, every point outside
         the pool is farther. The last ``POOLS`` pools are kept (a rollout starts near
         where the previous one started); without one that answers, a pool is fetched
-        around ``q`` from the tree.
+        around ``q`` (:meth:`fetch_pool`).
         """
-        k, pools = self.k, self._pools
-        for n, (cx, cy, radius, idx, rel) in enumerate(pools):
-            dx, dy = sx - cx, sy - cy
-            margin = radius - math.hypot(dx, dy)
-            if margin > 0.0:
-                q = self._query  # |p - q|^2 = |p - c|^2 - 2 (p - c).(q - c) + |q - c|^2
-                q[0], q[1] = -2.0 * dx, -2.0 * dy
-                d2 = rel.dot(q)  # (P,), up to |q - c|^2
-                order = d2.argsort(kind="stable")
-                if d2.item(order.item(k - 1)) + (dx * dx + dy * dy) < margin * margin:
-                    if n:
-                        pools.insert(0, pools.pop(n))
-                    near = idx.take(order[:k])
-                    near.sort()
-                    return near.tobytes()
-        c = self._centre
-        c[0], c[1] = sx, sy
-        dist, idx = self.tree_.query(c, k=self.pool_size)
-        if self.pool_size == 1:
-            dist, idx = np.atleast_1d(dist), np.atleast_1d(idx)
-        radius = math.inf if self.pool_size == len(self.inputs_) else dist.item(-1)
-        rel = np.empty((len(idx), 3))  # (p - c, |p - c|^2)
-        np.subtract(self.inputs_.take(idx, axis=0), c, out=rel[:, :2])
-        np.einsum("ij,ij->i", rel[:, :2], rel[:, :2], out=rel[:, 2])
-        pools.insert(0, (sx, sy, radius, idx, rel))
-        del pools[POOLS:]
-        return np.sort(idx[:k]).tobytes()
+        near = np.empty(self.k, dtype=np.int64)
+        args = (self._meta, self._pidx, self._prel, self._lru, self._ist, near)
+        if not _kernels.pool_search(float(sx), float(sy), self.k, *args):
+            near = self.fetch_pool(float(sx), float(sy))
+        return near.astype(np.intp).tobytes()
+
+    def fetch_pool(self, sx: float, sy: float) -> np.ndarray:
+        """Fetch the pool around ``(sx, sy)`` (the ``pool_size`` nearest points, as a
+        cKDTree query would give them, :func:`autonomy._kernels.fetch_pool`), keep it as
+        the most recent (dropping the oldest beyond ``POOLS``); returns the ``k`` nearest
+        (sorted, int64)."""
+        near = np.empty(self.k, dtype=np.int64)
+        args = (self._meta, self._pidx, self._prel, self._lru, self._ist, near)
+        _kernels.fetch_pool(float(sx), float(sy), self.inputs_, self.k, *args)
+        return near
 
     def _terms(self, key: bytes) -> tuple[tuple[float, ...], ...]:
         """The local fit of the neighbour set ``key`` as per-component constants of
         Eqs. (4.6)-(4.8): (log w, the input means (2) and variances (2) [m, m^2], the
         log determinant of the input covariance, the output means ``u*`` (3))."""
-        terms = self.cache_.get(key)
-        if terms is None:
-            phi = self.features_.take(np.frombuffer(key, dtype=np.intp), axis=0)
-            params, n_iter, _ = _fit(phi, self.floor_, self.tol, self.max_iter)
-            self.n_iter_counts_[n_iter] += 1
-            cx, cy, c0, c1, c2 = self.origin_.tolist()
-            terms = tuple(
-                (
-                    lw,
-                    mu[0] + cx,
-                    mu[1] + cy,
-                    var[0],
-                    var[1],
-                    math.log(var[0] * var[1]),
-                    mu[2] + c0,
-                    mu[3] + c1,
-                    mu[4] + c2,
-                )
-                for lw, mu, var, _ in params
-            )
-            if len(self.cache_) >= self.cache_size:
-                self.cache_.clear()
-            self.cache_[key] = terms
-        return terms
+        near = np.frombuffer(key, dtype=np.intp).astype(np.int64)
+        self.cache_.reserve(1)
+        c = self.cache_
+        row = _kernels.local_terms(
+            near,
+            *self.kernel_state()[2:8],
+            c.keys,
+            c.vals,
+            c.used,
+            self._ist,
+            self.n_iter_counts_,
+        )
+        terms = self.cache_.vals[row].tolist()
+        return tuple(tuple(terms[9 * c : 9 * c + 9]) for c in range(self.cache_.used[row]))
 
     def fit_local(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The local mixture for query ``x`` (2,) [m]: log weights (K,), input means and
@@ -324,8 +365,7 @@ class LocalGMR:
     def predict_xy(self, sx: float, sy: float) -> tuple[float, float, float]:
         """:meth:`predict` for the input ``(sx, sy)`` [m] in scalar arithmetic (the
         rollout's inner loop): the same Eqs. (4.5)-(4.8)."""
-        key = self._key(sx, sy)
-        terms = self.cache_.get(key) or self._terms(key)
+        terms = self._terms(self._key(sx, sy))
         if len(terms) == 1:
             return terms[0][6:]
         (lw0, mx0, my0, vx0, vy0, ld0, a0, b0, c0), (lw1, mx1, my1, vx1, vy1, ld1, a1, b1, c1) = (

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from autonomy.features import wrap_angle
+from autonomy._tick_kernels import track_kernel as _track_kernel
 
 
 @dataclass(frozen=True, slots=True)
@@ -76,28 +76,26 @@ def track(
         (3,) command (v_x [m/s], v_y [m/s], omega [rad/s]); zeros for an empty path.
     """
     settings = TrackingSettings() if settings is None else settings
-    path = np.asarray(path, dtype=float).reshape(-1, 3)
-    if len(path) == 0:
-        return np.zeros(3)
-    xy = np.vstack((np.zeros((1, 2)), path[:, :2]))
-    yaw = np.concatenate(([0.0], np.unwrap(path[:, 2])))
-    arc = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))))
-    total = float(arc[-1])
-    if total < 1e-9:  # a predicted pure rotation
-        t_end = max(len(path) * dt, settings.min_time_s)
-        omega = float(np.clip(wrap_angle(yaw[-1]) / t_end, -max_yaw_rate, max_yaw_rate))
-        return np.array([0.0, 0.0, omega])
-    target = min(settings.lookahead_m, total)
-    # index i with arc[i] <= target <= arc[i + 1], then interpolate
-    i = int(min(np.searchsorted(arc, target, side="right") - 1, len(arc) - 2))
-    span = arc[i + 1] - arc[i]
-    f = (target - arc[i]) / span if span > 0 else 1.0
-    point = xy[i] + f * (xy[i + 1] - xy[i])
-    yaw_l = yaw[i] + f * (yaw[i + 1] - yaw[i])
-    t_l = max((i + f) * dt, settings.min_time_s)
-    speed = target / t_l  # the path's speed up to the look-ahead point
-    dist = math.hypot(point[0], point[1])
-    direction = point / dist if dist > 1e-12 else np.zeros(2)
-    v_xy = min(speed, max_speed) * direction
-    omega = float(np.clip(yaw_l / t_l, -max_yaw_rate, max_yaw_rate))
-    return np.array([v_xy[0], v_xy[1], omega])
+    path = np.ascontiguousarray(path, dtype=float).reshape(-1, 3)
+    # compiled (autonomy._tick_kernels.track_kernel), the steps as numpy computed them before
+    # (tests/contextual_reference.py), operation by operation:
+    # xy = (0, 0) and path[:, :2]; yaw = 0 and np.unwrap(path[:, 2]);
+    # arc = 0 and np.cumsum(np.hypot(*np.diff(xy, axis=0).T)); total = arc[-1];
+    # total < 1e-9 (a predicted pure rotation): omega = clip(wrap_angle(yaw[-1]) / t_end)
+    # with t_end = max(k dt, min_time_s); else the look-ahead point at arc length
+    # target = min(lookahead_m, total), i = searchsorted(arc, target, "right") - 1 (at most
+    # k - 1), f = (target - arc[i]) / (arc[i + 1] - arc[i]) (1 for a zero span), the point
+    # and yaw_l interpolated, t_l = max((i + f) dt, min_time_s); v_xy = min(target / t_l,
+    # max_speed) * point / |point| (0 if |point| <= 1e-12), omega = clip(yaw_l / t_l).
+    out = np.zeros(3)
+    if len(path):
+        _track_kernel(
+            path,
+            float(dt),
+            float(max_speed),
+            float(max_yaw_rate),
+            float(settings.lookahead_m),
+            float(settings.min_time_s),
+            out,
+        )
+    return out
