@@ -1,0 +1,156 @@
+"""Compiled loops of the footprint-versus-laser-points geometry (:mod:`autonomy.safety`,
+:mod:`autonomy.dwa`).
+
+Each kernel repeats the floating-point operations of the vectorised numpy code it
+replaced, in the same order and precision (the clearances in float32, as
+:func:`autonomy.safety.footprint_clearance` works; no fastmath, no fused multiply-add),
+so its results are bit-identical to it; ``tests/test_geometry_kernels.py`` checks that
+against the numpy code kept in ``tests/geometry_reference.py``. Where a caller only needs
+the first pose or twist that fails a test, the loops stop there.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+_F32 = np.float32
+_EPS = float(np.finfo(float).eps)
+_TWO_PI = 2 * np.pi
+
+
+@njit(cache=True)
+def _sinc(x: float) -> float:
+    """``autonomy.safety._sinc`` (numpy's sinc) of one number."""
+    y = np.pi * x
+    if y == 0.0:
+        y = _EPS
+    return np.sin(y) / y
+
+
+@njit(cache=True)
+def arc_pose(vx: float, vy: float, w: float, t: float, out: np.ndarray) -> None:
+    """Pose (x [m], y [m], yaw [rad]) into ``out`` (3,) reached in ``t`` [s] under the
+    constant twist ``(vx, vy, w)``; :func:`autonomy.safety.arc_poses` for one entry."""
+    a = w * t  # heading change
+    s1 = t * _sinc(a / np.pi)  # sin(a) / w
+    s2 = t * np.sin(a / 2) * _sinc(a / _TWO_PI)  # (1 - cos a) / w
+    out[0] = vx * s1 - vy * s2
+    out[1] = vx * s2 + vy * s1
+    out[2] = a
+
+
+@njit(cache=True)
+def arc_poses_kernel(v: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Poses (s, k, 3) reached from the origin under twists ``v`` (s, 3) at times ``t``
+    (k,) [s]."""
+    out = np.empty((v.shape[0], t.shape[0], 3))
+    for i in range(v.shape[0]):
+        for j in range(t.shape[0]):
+            arc_pose(v[i, 0], v[i, 1], v[i, 2], t[j], out[i, j])
+    return out
+
+
+@njit(cache=True)
+def _lines_at(x, y, yaw, normals, mid, ax, ay, b) -> None:
+    """The footprint's lines at pose (x, y, yaw), in the points' frame and float32:
+    normals ``(ax, ay)`` (l,) and offsets ``b`` (l,)."""
+    c, s = np.cos(yaw), np.sin(yaw)
+    for e in range(normals.shape[0]):
+        nx, ny = normals[e, 0], normals[e, 1]
+        ax64 = c * nx - s * ny
+        ay64 = s * nx + c * ny
+        ax[e] = _F32(ax64)
+        ay[e] = _F32(ay64)
+        b[e] = _F32(mid[e] + ax64 * x + ay64 * y)
+
+
+@njit(cache=True)
+def _clearance_f32(ax, ay, b, half, two_sided, px, py) -> np.float32:
+    """``min_points max_lines`` of the half-plane values in float32 (see
+    :func:`clearance_kernel`); NaN propagates as with ``np.maximum`` and ``min``."""
+    best = _F32(np.inf)
+    for j in range(px.shape[0]):
+        h = _F32(0.0)
+        for e in range(ax.shape[0]):
+            val = ax[e] * px[j]
+            val += ay[e] * py[j]
+            val -= b[e]
+            if two_sided[e]:  # a pair of parallel edges: |n . q - mid| - half
+                val = abs(val) - half[e]
+            if e == 0 or val > h or val != val:
+                h = val
+        if h < best or h != h:
+            best = h
+    return best
+
+
+@njit(cache=True)
+def clearance_kernel(
+    poses: np.ndarray,
+    px: np.ndarray,
+    py: np.ndarray,
+    normals: np.ndarray,
+    mid: np.ndarray,
+    half: np.ndarray,
+) -> np.ndarray:
+    """:func:`autonomy.safety.footprint_clearance` (p,) [m] of poses (p, 3) to the points
+    ``(px, py)`` (m,) float32, the footprint's lines ``normals`` (l, 2), ``mid`` (l,),
+    ``half`` (l,) [m] (NaN: a one-sided line); at least one point."""
+    n_lines = normals.shape[0]
+    ax = np.empty(n_lines, dtype=_F32)
+    ay = np.empty(n_lines, dtype=_F32)
+    b = np.empty(n_lines, dtype=_F32)
+    half32, two_sided = _half_lines(half)
+    out = np.empty(poses.shape[0])
+    for i in range(poses.shape[0]):
+        _lines_at(poses[i, 0], poses[i, 1], poses[i, 2], normals, mid, ax, ay, b)
+        out[i] = _clearance_f32(ax, ay, b, half32, two_sided, px, py)
+    return out
+
+
+@njit(cache=True)
+def _half_lines(half: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The lines' half widths in float32 and whether each is two-sided (not NaN)."""
+    half32 = np.empty(half.shape[0], dtype=_F32)
+    two_sided = np.empty(half.shape[0], dtype=np.bool_)
+    for e in range(half.shape[0]):
+        two_sided[e] = not np.isnan(half[e])
+        half32[e] = _F32(half[e]) if two_sided[e] else _F32(0.0)
+    return half32, two_sided
+
+
+@njit(cache=True)
+def first_unsafe_step(
+    v: np.ndarray,
+    rate: float,
+    dtau: float,
+    n_steps: int,
+    c0: float,
+    required: float,
+    px: np.ndarray,
+    py: np.ndarray,
+    normals: np.ndarray,
+    mid: np.ndarray,
+    half: np.ndarray,
+) -> int:
+    """Index j (0-based) of the first interval ``[j dtau, (j + 1) dtau]`` along the arc of
+    the twist ``v`` (3,) whose guaranteed clearance ``(h_j + h_{j+1} - rate dtau) / 2``
+    (``autonomy.safety.interval_clearance``; ``h_0 = c0``) falls below ``required`` [m];
+    -1 when none of the ``n_steps`` does. The arc's poses are checked in order and the
+    loop stops at the first failure (:func:`autonomy.safety.safe_command`)."""
+    n_lines = normals.shape[0]
+    ax = np.empty(n_lines, dtype=_F32)
+    ay = np.empty(n_lines, dtype=_F32)
+    b = np.empty(n_lines, dtype=_F32)
+    half32, two_sided = _half_lines(half)
+    pose = np.empty(3)
+    prev = c0
+    for j in range(n_steps):
+        arc_pose(v[0], v[1], v[2], dtau * float(j + 1), pose)
+        _lines_at(pose[0], pose[1], pose[2], normals, mid, ax, ay, b)
+        h = float(_clearance_f32(ax, ay, b, half32, two_sided, px, py))
+        if 0.5 * (prev + h - rate * dtau) < required:
+            return j
+        prev = h
+    return -1
