@@ -66,9 +66,10 @@ def _lines_at(x, y, yaw, normals, mid, ax, ay, b) -> None:
 
 
 @njit(cache=True)
-def _clearance_f32(ax, ay, b, half, two_sided, px, py) -> np.float32:
+def _clearance_f32(ax, ay, b, half, two_sided, px, py, stop_below=-np.inf) -> np.float32:
     """``min_points max_lines`` of the half-plane values in float32 (see
-    :func:`clearance_kernel`); NaN propagates as with ``np.maximum`` and ``min``."""
+    :func:`clearance_kernel`); NaN propagates as with ``np.maximum`` and ``min``. Stops
+    at the first point whose value is below ``stop_below`` (returning that value)."""
     best = _F32(np.inf)
     for j in range(px.shape[0]):
         h = _F32(0.0)
@@ -82,6 +83,8 @@ def _clearance_f32(ax, ay, b, half, two_sided, px, py) -> np.float32:
                 h = val
         if h < best or h != h:
             best = h
+            if best < stop_below:
+                break
     return best
 
 
@@ -154,3 +157,94 @@ def first_unsafe_step(
             return j
         prev = h
     return -1
+
+
+@njit(cache=True)
+def _arc_min_clearance(
+    v, times, px, py, normals, mid, half32, two_sided, ax, ay, b, pose, stop_below
+) -> float:
+    """Smallest clearance [m] of the footprint to the points over the poses of twist
+    ``v`` (3,) at ``times`` (k,) [s]; stops at the first one below ``stop_below``
+    (and returns it)."""
+    low = np.inf
+    for j in range(times.shape[0]):
+        arc_pose(v[0], v[1], v[2], times[j], pose)
+        _lines_at(pose[0], pose[1], pose[2], normals, mid, ax, ay, b)
+        h = float(_clearance_f32(ax, ay, b, half32, two_sided, px, py, stop_below))
+        if h < low or h != h:
+            low = h
+        if low < stop_below or low != low:
+            break
+    return low
+
+
+@njit(cache=True)
+def horizon_clearances(
+    samples: np.ndarray,
+    times: np.ndarray,
+    px: np.ndarray,
+    py: np.ndarray,
+    normals: np.ndarray,
+    mid: np.ndarray,
+    half: np.ndarray,
+) -> np.ndarray:
+    """Per twist of ``samples`` (n, 3), the smallest footprint clearance [m] over its
+    poses at ``times`` (k,) [s], or a negative one of them: the row minimum of
+    ``footprint_clearance(arc_poses(samples, times))`` wherever that is >= 0, and some
+    value < 0 wherever it is negative (what ``clip(., 0, cap)`` needs, :mod:`autonomy.dwa`)."""
+    n_lines = normals.shape[0]
+    ax = np.empty(n_lines, dtype=_F32)
+    ay = np.empty(n_lines, dtype=_F32)
+    b = np.empty(n_lines, dtype=_F32)
+    half32, two_sided = _half_lines(half)
+    pose = np.empty(3)
+    out = np.empty(samples.shape[0])
+    for i in range(samples.shape[0]):
+        out[i] = _arc_min_clearance(
+            samples[i], times, px, py, normals, mid, half32, two_sided, ax, ay, b, pose, 0.0
+        )
+    return out
+
+
+@njit(cache=True)
+def first_admissible(
+    samples: np.ndarray,
+    order: np.ndarray,
+    n_check: np.ndarray,
+    rate: np.ndarray,
+    step: float,
+    c0: float,
+    required: float,
+    px: np.ndarray,
+    py: np.ndarray,
+    normals: np.ndarray,
+    mid: np.ndarray,
+    half: np.ndarray,
+) -> tuple[int, float]:
+    """The first twist in ``order`` whose guaranteed clearance stays >= ``required`` [m]
+    on every interval up to ``n_check[i] * step`` [s] (``autonomy.safety.
+    interval_clearance`` with ``rate`` (n,) [m/s], ``h_0 = c0``): its position in
+    ``order`` and its smallest interval clearance [m]; ``(-1, -inf)`` when none is. Each
+    twist's check stops at its first failing interval (:func:`autonomy.dwa.dwa`)."""
+    n_lines = normals.shape[0]
+    ax = np.empty(n_lines, dtype=_F32)
+    ay = np.empty(n_lines, dtype=_F32)
+    b = np.empty(n_lines, dtype=_F32)
+    half32, two_sided = _half_lines(half)
+    pose = np.empty(3)
+    for pos in range(order.shape[0]):
+        i = order[pos]
+        prev, low, ok = c0, np.inf, True
+        for j in range(n_check[i]):
+            arc_pose(samples[i, 0], samples[i, 1], samples[i, 2], step * float(j + 1), pose)
+            _lines_at(pose[0], pose[1], pose[2], normals, mid, ax, ay, b)
+            h = float(_clearance_f32(ax, ay, b, half32, two_sided, px, py))
+            bound = 0.5 * (prev + h - rate[i] * step)
+            if not bound >= required:
+                ok = False
+                break
+            low = min(low, bound)
+            prev = h
+        if ok:
+            return pos, low
+    return -1, -np.inf
