@@ -248,3 +248,69 @@ def first_admissible(
         if ok:
             return pos, low
     return -1, -np.inf
+
+
+@njit(cache=True)
+def _near_points(points: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray]:
+    """The points (m, 2) [m] with ``|p|^2 <= reach^2``, as float32 x and y (k,)."""
+    r2 = reach * reach
+    px = np.empty(points.shape[0], dtype=_F32)
+    py = np.empty(points.shape[0], dtype=_F32)
+    k = 0
+    for i in range(points.shape[0]):
+        x, y = points[i, 0], points[i, 1]
+        if x * x + y * y <= r2:
+            px[k], py[k] = _F32(x), _F32(y)
+            k += 1
+    return px[:k], py[:k]
+
+
+@njit(cache=True)
+def safe_arc_check(
+    v: np.ndarray,
+    points: np.ndarray,
+    reach: float,
+    x_steps: float,
+    tau_max: float,
+    max_steps: float,
+    radius: float,
+    margin: float,
+    tolerance_m: float,
+    normals: np.ndarray,
+    mid: np.ndarray,
+    half: np.ndarray,
+) -> tuple[int, float]:
+    """The collision check of :func:`autonomy.safety.safe_command` for the twist ``v``
+    (3,) against the laser points (m, 2) [m] within ``reach`` [m]: the start clearance
+    ``c0``, the required clearance ``min(margin, c0 - tolerance_m)``, ``n_steps =
+    min(max_steps, max(2, ceil(x_steps)))`` poses ``dtau = tau_max / n_steps`` [s] apart
+    and the sweep rate bound, then :func:`first_unsafe_step`.
+
+    Returns
+    -------
+    code : the first unsafe interval's index; -1 when none is, -2 when no point lies
+        within ``reach``, -3 when ``x_steps`` is not finite (the caller raises).
+    dtau : [s] (0 unless code >= -1).
+    """
+    px, py = _near_points(points, reach)
+    if px.shape[0] == 0:
+        return -2, 0.0
+    if not np.isfinite(x_steps):
+        return -3, 0.0
+    n_lines = normals.shape[0]
+    ax = np.empty(n_lines, dtype=_F32)
+    ay = np.empty(n_lines, dtype=_F32)
+    b = np.empty(n_lines, dtype=_F32)
+    half32, two_sided = _half_lines(half)
+    _lines_at(0.0, 0.0, 0.0, normals, mid, ax, ay, b)
+    c0 = float(_clearance_f32(ax, ay, b, half32, two_sided, px, py))
+    lowered = c0 - tolerance_m
+    required = lowered if lowered < margin else margin  # Python's min(margin, lowered)
+    steps = np.ceil(x_steps)
+    steps = steps if steps > 2.0 else 2.0
+    n_steps = int(steps if steps < max_steps else max_steps)
+    dtau = tau_max / n_steps
+    w = abs(v[2])
+    rate = (np.hypot(v[0], v[1]) + w * radius) * np.exp(w * dtau)  # safety.sweep_rate
+    bad = first_unsafe_step(v, rate, dtau, n_steps, c0, required, px, py, normals, mid, half)
+    return bad, dtau

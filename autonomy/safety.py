@@ -17,7 +17,7 @@ import math
 
 import numpy as np
 
-from autonomy._geometry_kernels import arc_poses_kernel, clearance_kernel, first_unsafe_step
+from autonomy._geometry_kernels import arc_poses_kernel, clearance_kernel, safe_arc_check
 from autonomy.types import RobotModel
 
 # Working precision of the many (pose, point) evaluations (autonomy._geometry_kernels
@@ -110,9 +110,6 @@ def interval_clearance(h0: float, h: np.ndarray, rate: np.ndarray, dt: float) ->
     return 0.5 * (prev + h - np.asarray(rate, dtype=float)[:, None] * dt)
 
 
-_ORIGIN = np.zeros((1, 3))  # the start pose
-_ORIGIN.setflags(write=False)
-
 _RADII: dict = {}  # (robot, margin) -> inflated radius [m]; robots hash by identity
 
 
@@ -200,7 +197,7 @@ def safe_command(
     v_safe : (3,) ``scale * v``.
     scale : in [0, 1]; 1 when ``v`` is safe as it is.
     """
-    v = np.asarray(v, dtype=float).reshape(3)
+    v = np.ascontiguousarray(v, dtype=float).reshape(3)
     if horizon_s <= 0 or step_m <= 0:
         raise ValueError(
             f"safe_command: horizon_s and step_m must be positive, got {horizon_s}, {step_m}"
@@ -213,23 +210,19 @@ def safe_command(
     tau_max = max(horizon_s, robot.dt + brake)  # checked time of the unscaled command
     radius = inflated_radius(robot, robot.protective_margin)
 
-    points = np.asarray(points, dtype=float).reshape(-1, 2)
-    reach = speed * tau_max + radius + step_m
-    points = points[np.einsum("ij,ij->i", points, points) <= reach * reach]
-    if len(points) == 0:
-        return v.copy(), 1.0
-
-    px, py = _work_points(points)
-    lines = (robot.line_normals, robot.line_mid, robot.line_half)
-    c0 = float(clearance_kernel(_ORIGIN, px, py, *lines)[0])
-    required = required_clearance(c0, robot, tolerance_m)
+    points = np.ascontiguousarray(points, dtype=float).reshape(-1, 2)
+    reach = speed * tau_max + radius + step_m  # points beyond it cannot be reached
     rate0 = speed + yaw_rate * radius
-    n_steps = int(min(max_steps, max(2, math.ceil(tau_max * rate0 / step_m))))
-    dtau = tau_max / n_steps
-    rate = float(sweep_rate(v, radius, dtau))
-    # the arc's poses every dtau, exact in between (interval_clearance), up to the first
-    # interval whose clearance falls below the required one
-    bad = first_unsafe_step(v, rate, dtau, n_steps, c0, required, px, py, *lines)
+    x_steps = tau_max * rate0 / step_m  # poses n_steps = min(max_steps, max(2, ceil(.)))
+    # the arc's poses every dtau, exact in between (interval_clearance), checked against
+    # the points within reach up to the first interval below the required clearance
+    bad, dtau = safe_arc_check(
+        v, points, reach, x_steps, tau_max, float(max_steps), radius,
+        robot.protective_margin, tolerance_m,
+        robot.line_normals, robot.line_mid, robot.line_half,
+    )  # fmt: skip
+    if bad == -3:
+        math.ceil(x_steps)  # raises, as for a non-finite number of steps
     if bad < 0:
         return v.copy(), 1.0
     tau_safe = bad * dtau  # the arc is clear on [0, tau_safe]

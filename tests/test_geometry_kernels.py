@@ -103,6 +103,21 @@ def test_safe_command_is_the_numpy_one(rng, robot) -> None:
             assert np.array_equal(got_v, want_v) and got_s == want_s
 
 
+def test_safe_command_with_non_finite_commands_is_the_numpy_one(rng) -> None:
+    points = room_points(rng, RECTANGLE)
+    for v in ([np.nan, 0.0, 0.0], [0.0, 0.0, np.nan], [np.inf, 0.0, 0.0], [0.0, 0.0, -np.inf]):
+        with np.errstate(invalid="ignore"):  # inf * 0 in both
+            try:
+                want = ref_safe_command(np.array(v), points, RECTANGLE)
+            except (ValueError, OverflowError) as error:
+                with pytest.raises(type(error)):
+                    safe_command(np.array(v), points, RECTANGLE)
+                continue
+            got = safe_command(np.array(v), points, RECTANGLE)
+        assert np.array_equal(got[0], want[0], equal_nan=True)
+        assert got[1] == want[1] or (math.isnan(got[1]) and math.isnan(want[1]))
+
+
 def same_dwa(got, want) -> bool:
     fields = ("v", "path", "horizon_s", "clearance", "n_checked", "n_samples")
     return all(np.array_equal(getattr(got, f), getattr(want, f)) for f in fields)
