@@ -79,7 +79,13 @@ def cast_kernel(
 ) -> np.ndarray:
     """Ranges (m, n) [m] of :func:`sim.sensors.cast`: edges (s, 2) ``edge_a``, ``edge_b``
     with outward ``normals`` (s, 2), circles ``centres`` (c, 2), ``radii`` (c,), sensors
-    at ``origins`` (m, 2) with beam 0 at ``first`` (m,) [rad]."""
+    at ``origins`` (m, 2) with beam 0 at ``first`` (m,) [rad].
+
+    Per sensor, the edges facing it (of closed convex outlines: the back faces are hidden
+    behind the front ones) and the circles that neither contain it nor lie out of range
+    are intersected exactly with the beams inside their angular interval relative to
+    beam 0 (an edge's from end to end, a circle's centre +- asin(r / d)); each beam
+    keeps its nearest hit."""
     m = origins.shape[0]
     ranges = np.full((m, n), max_range)
     cos_b = np.empty(n)
