@@ -19,11 +19,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from autonomy._geometry_kernels import first_admissible, horizon_clearances
 from autonomy.safety import (
+    _work_points,
     arc_poses,
     footprint_clearance,
     inflated_radius,
-    interval_clearance,
     required_clearance,
     sweep_rate,
 )
@@ -48,7 +49,9 @@ class DWASettings:
     clearance_by_progress: bool = True
     tolerance_m: float = 0.01  # [m] clearance loss allowed inside the protective field
     score_cell_m: float = 0.05  # [m] the scores see one laser point per grid square this size
-    batch: int = 8  # twists in the first collision check, best-scored first (then doubling)
+    # unused since the collision check runs compiled, one twist at a time and stopping at
+    # the first admissible one (issue 25); kept so that settings naming it stay valid
+    batch: int = 8
 
     def __post_init__(self) -> None:
         positive = ("horizon_s", "step_s", "score_step_s", "clearance_cap_m", "score_cell_m")
@@ -138,8 +141,8 @@ def _scores(
     robot: RobotModel,
     st: DWASettings,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Scores of the twists ``samples`` (n, 3) and their poses (n, n_look, 3) every
-    ``score_step_s`` along the horizon::
+    """Scores of the twists ``samples`` (n, 3), and the times (n_look,) [s] of the poses
+    every ``score_step_s`` along the horizon that they look at::
 
         J = w_a (1 - ||v - u||_n) + w_c p min(clearance, c_cap) / c_cap
 
@@ -156,21 +159,26 @@ def _scores(
     centred on the velocity -- and in free space ``v*`` still scores best.
     The scores see one laser point per ``score_cell_m`` square (``points`` (m, 2) [m],
     ``sq`` their squared norms): they only rank the twists."""
-    n = len(samples)
     n_look = max(1, math.ceil(st.horizon_s / st.score_step_s - 1e-9))
-    look = arc_poses(samples, st.score_step_s * np.arange(1, n_look + 1))
+    times = st.score_step_s * np.arange(1, n_look + 1)
     cap = st.clearance_cap_m
     reach = speed.max() * st.score_step_s * n_look + inflated_radius(
         robot, max(robot.protective_margin, cap)
     )
     coarse = thin_points(points[sq <= reach * reach], st.score_cell_m)
-    h_look = footprint_clearance(look.reshape(-1, 3), coarse, robot).reshape(n, n_look)
+    if len(coarse):
+        px, py = _work_points(coarse)
+        lines = (robot.line_normals, robot.line_mid, robot.line_half)
+        # the smallest clearance along each arc (a negative one where it goes below 0)
+        low = horizon_clearances(samples, times, px, py, *lines)
+    else:
+        low = np.full(len(samples), np.inf)
     scale = np.array([2 * robot.max_speed, 2 * robot.max_speed, 2 * robot.max_yaw_rate])
     agreement = 1 - np.linalg.norm((samples - u) / scale, axis=1) / math.sqrt(3)
-    clearance = np.clip(h_look.min(axis=1), 0.0, cap) / cap
+    clearance = np.clip(low, 0.0, cap) / cap
     return st.weight_agreement * agreement + st.weight_clearance * clearance * _progress(
         samples, u, st.clearance_by_progress
-    ), look
+    ), times
 
 
 def _progress(samples: np.ndarray, u: np.ndarray, enabled: bool) -> np.ndarray | float:
@@ -194,8 +202,9 @@ def dwa(
 ) -> DWAResult:
     """Best admissible twist near the user's command ``u`` (eq. 3.8, ``g = DWA(u, z)``).
 
-    The twists are scored (:func:`_scores`), then checked for collision in score order,
-    in batches of doubling size, with every laser point and poses every ``step_s``,
+    The twists are scored (:func:`_scores`), then checked for collision in score order
+    (``autonomy._geometry_kernels.first_admissible``), with every laser point and poses
+    every ``step_s``,
     exactly in continuous time (:func:`autonomy.safety.interval_clearance`); the first
     twist whose footprint stays out of its protective field for ``horizon_s`` -- and for
     as long as braking from it to a stop takes, Fox's admissibility -- is the answer.
@@ -231,30 +240,25 @@ def dwa(
     c0 = float(footprint_clearance(np.zeros((1, 3)), check, robot)[0])
     required = required_clearance(c0, robot, st.tolerance_m)
 
-    score, look = _scores(samples, speed, u, points, sq, robot, st)
+    score, times = _scores(samples, speed, u, points, sq, robot, st)
 
-    # exact admissibility, best-scored twists first, a batch at a time
+    # exact admissibility, best-scored twists first
     rate = sweep_rate(samples, radius, st.step_s)
-    steps = np.arange(1, n_check.max() + 1)
     order = np.argsort(-score, kind="stable")
-    start, size = 0, st.batch
-    while start < n:
-        batch = order[start : start + size]
-        poses = arc_poses(samples[batch], st.step_s * steps)
-        h = footprint_clearance(poses.reshape(-1, 3), check, robot).reshape(len(batch), -1)
-        bound = interval_clearance(c0, h, rate[batch], st.step_s)
-        bound = np.where(steps <= n_check[batch, None], bound, np.inf).min(axis=1)
-        ok = np.flatnonzero(bound >= required)
-        if len(ok):
-            best = batch[ok[0]]
-            path = np.vstack((np.zeros((1, 3)), look[best]))
-            return DWAResult(
-                v=samples[best].copy(),
-                path=path,
-                horizon_s=float(n_check[best] * st.step_s),
-                clearance=float(bound[ok[0]]),
-                n_checked=start + int(ok[0]) + 1,
-                n_samples=n,
-            )
-        start, size = start + size, 2 * size  # doubling: few passes when many fail
+    px, py = _work_points(check)
+    lines = (robot.line_normals, robot.line_mid, robot.line_half)
+    pos, low = first_admissible(
+        samples, order, n_check, rate, st.step_s, c0, required, px, py, *lines
+    )
+    if pos >= 0:
+        best = order[pos]
+        path = np.vstack((np.zeros((1, 3)), arc_poses(samples[best], times)[0]))
+        return DWAResult(
+            v=samples[best].copy(),
+            path=path,
+            horizon_s=float(n_check[best] * st.step_s),
+            clearance=low,
+            n_checked=pos + 1,
+            n_samples=n,
+        )
     return DWAResult(np.zeros(3), np.zeros((1, 3)), 0.0, -math.inf, n, n)

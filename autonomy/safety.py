@@ -17,12 +17,12 @@ import math
 
 import numpy as np
 
+from autonomy._geometry_kernels import arc_poses_kernel, clearance_kernel, safe_arc_check
 from autonomy.types import RobotModel
 
-# Working precision of the many (pose, point) evaluations: float32 halves memory
-# traffic; its rounding (~1e-6 m at room scale) is far below any margin used here.
+# Working precision of the many (pose, point) evaluations (autonomy._geometry_kernels
+# computes in it): its rounding (~1e-6 m at room scale) is far below any margin used here.
 _WORK_DTYPE = np.float32
-_CHUNK_ELEMENTS = 1 << 15  # (poses x points) per block, so the temporaries stay in cache
 
 
 def arc_poses(v: np.ndarray, t: np.ndarray) -> np.ndarray:
@@ -37,28 +37,8 @@ def arc_poses(v: np.ndarray, t: np.ndarray) -> np.ndarray:
     -------
     (s, k, 3) poses (x [m], y [m], yaw [rad]) in the frame of the start pose.
     """
-    v = np.atleast_2d(np.asarray(v, dtype=float))
-    t = np.asarray(t, dtype=float)
-    vx, vy, w = v[:, 0, None], v[:, 1, None], v[:, 2, None]
-    a = w * t  # heading change
-    # sin(a)/w and (1 - cos a)/w written with sinc so that w -> 0 is exact
-    s1 = t * _sinc(a / np.pi)
-    s2 = t * np.sin(a / 2) * _sinc(a / (2 * np.pi))
-    out = np.empty((*a.shape, 3))
-    np.subtract(vx * s1, vy * s2, out=out[..., 0])
-    np.add(vx * s2, vy * s1, out=out[..., 1])
-    out[..., 2] = a
-    return out
-
-
-_EPS = float(np.finfo(float).eps)
-
-
-def _sinc(x: np.ndarray) -> np.ndarray:
-    """``numpy.sinc`` of a float array, the same operations without its per-call overhead."""
-    x = np.pi * x
-    y = np.where(x, x, _EPS)
-    return np.sin(y) / y
+    v = np.ascontiguousarray(np.atleast_2d(v), dtype=float)
+    return arc_poses_kernel(v, np.ascontiguousarray(t, dtype=float).reshape(-1))
 
 
 def footprint_clearance(poses: np.ndarray, points: np.ndarray, robot: RobotModel) -> np.ndarray:
@@ -75,39 +55,17 @@ def footprint_clearance(poses: np.ndarray, points: np.ndarray, robot: RobotModel
     (p,) [m] ``min_points max_edges (n_e . q - c_e)``: negative inside the footprint,
     ``> c`` iff no point lies in the footprint inflated by ``c``; ``inf`` without points.
     """
-    poses = np.asarray(poses, dtype=float).reshape(-1, 3)
+    poses = np.ascontiguousarray(poses, dtype=float).reshape(-1, 3)
     points = np.asarray(points, dtype=float).reshape(-1, 2)
-    n_poses, n_points = len(poses), len(points)
-    if n_points == 0:
-        return np.full(n_poses, np.inf)
-    normals, mid, half = robot.line_normals, robot.line_mid, robot.line_half
-    c, s = np.cos(poses[:, 2])[:, None], np.sin(poses[:, 2])[:, None]
-    nx, ny = normals[:, 0], normals[:, 1]
-    # line normals rotated into the points' frame, and the lines' offsets there
-    ax64, ay64 = c * nx - s * ny, s * nx + c * ny  # (p, l)
-    b = mid + ax64 * poses[:, 0, None] + ay64 * poses[:, 1, None]
-    ax, ay, b = (a.astype(_WORK_DTYPE) for a in (ax64, ay64, b))
-    px = points[:, 0].astype(_WORK_DTYPE)
-    py = points[:, 1].astype(_WORK_DTYPE)
-    out = np.empty(n_poses)
-    rows = max(1, _CHUNK_ELEMENTS // n_points)
-    for start in range(0, n_poses, rows):
-        sl = slice(start, start + rows)
-        h = val = tmp = None
-        for e in range(len(normals)):
-            val = np.multiply(ax[sl, e, None], px, out=val)
-            tmp = np.multiply(ay[sl, e, None], py, out=tmp)
-            val += tmp
-            val -= b[sl, e, None]
-            if not np.isnan(half[e]):  # a pair of parallel edges: |n . q - mid| - half
-                np.abs(val, out=val)
-                val -= _WORK_DTYPE(half[e])
-            if h is None:
-                h, val = val, None
-            else:
-                np.maximum(h, val, out=h)
-        out[sl] = h.min(axis=1)
-    return out
+    if len(points) == 0:
+        return np.full(len(poses), np.inf)
+    px, py = _work_points(points)
+    return clearance_kernel(poses, px, py, robot.line_normals, robot.line_mid, robot.line_half)
+
+
+def _work_points(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The points' coordinates (m, 2) [m] as two contiguous (m,) arrays in working precision."""
+    return points[:, 0].astype(_WORK_DTYPE), points[:, 1].astype(_WORK_DTYPE)
 
 
 def sweep_rate(v: np.ndarray, radius: float, dt: float) -> np.ndarray:
@@ -239,7 +197,7 @@ def safe_command(
     v_safe : (3,) ``scale * v``.
     scale : in [0, 1]; 1 when ``v`` is safe as it is.
     """
-    v = np.asarray(v, dtype=float).reshape(3)
+    v = np.ascontiguousarray(v, dtype=float).reshape(3)
     if horizon_s <= 0 or step_m <= 0:
         raise ValueError(
             f"safe_command: horizon_s and step_m must be positive, got {horizon_s}, {step_m}"
@@ -252,25 +210,22 @@ def safe_command(
     tau_max = max(horizon_s, robot.dt + brake)  # checked time of the unscaled command
     radius = inflated_radius(robot, robot.protective_margin)
 
-    points = np.asarray(points, dtype=float).reshape(-1, 2)
-    reach = speed * tau_max + radius + step_m
-    points = points[np.einsum("ij,ij->i", points, points) <= reach * reach]
-    if len(points) == 0:
-        return v.copy(), 1.0
-
-    c0 = float(footprint_clearance(np.zeros((1, 3)), points, robot)[0])
-    required = required_clearance(c0, robot, tolerance_m)
+    points = np.ascontiguousarray(points, dtype=float).reshape(-1, 2)
+    reach = speed * tau_max + radius + step_m  # points beyond it cannot be reached
     rate0 = speed + yaw_rate * radius
-    n_steps = int(min(max_steps, max(2, math.ceil(tau_max * rate0 / step_m))))
-    dtau = tau_max / n_steps
-    rate = sweep_rate(v, radius, dtau)
-    poses = arc_poses(v, dtau * np.arange(1, n_steps + 1))[0]
-    h = footprint_clearance(poses, points, robot)
-    bound = interval_clearance(c0, h[None, :], np.atleast_1d(rate), dtau)[0]
-    bad = np.flatnonzero(bound < required)
-    if len(bad) == 0:
+    x_steps = tau_max * rate0 / step_m  # poses n_steps = min(max_steps, max(2, ceil(.)))
+    # the arc's poses every dtau, exact in between (interval_clearance), checked against
+    # the points within reach up to the first interval below the required clearance
+    bad, dtau = safe_arc_check(
+        v, points, reach, x_steps, tau_max, float(max_steps), radius,
+        robot.protective_margin, tolerance_m,
+        robot.line_normals, robot.line_mid, robot.line_half,
+    )  # fmt: skip
+    if bad == -3:
+        math.ceil(x_steps)  # raises, as for a non-finite number of steps
+    if bad < 0:
         return v.copy(), 1.0
-    tau_safe = bad[0] * dtau  # the arc is clear on [0, tau_safe]
+    tau_safe = bad * dtau  # the arc is clear on [0, tau_safe]
     # largest s with s * T(s) <= tau_safe, T(s) = max(horizon, dt + s * brake)
     s = tau_safe / horizon_s
     if robot.dt + s * brake > horizon_s:

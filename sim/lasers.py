@@ -92,8 +92,8 @@ def laser_fans(scenario: Scenario, beams: tuple[Beams, ...]) -> tuple[Fans, ...]
         fans.append(
             Fans(
                 members=tuple(members),
-                positions=np.array([lasers[i].position for i in members]),
-                firsts=np.array([beams[i].angles[0] for i in members]),
+                positions=np.array([lasers[i].position for i in members], dtype=float),
+                firsts=np.array([beams[i].angles[0] for i in members], dtype=float),
                 step=step,
                 n=n,
                 height=height,

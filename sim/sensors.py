@@ -8,7 +8,7 @@ description of the scene's shape that the physics (``sim.world``) builds its bod
 from too. What a horizontal laser at height ``h`` can hit is a 2D cross-section
 (:func:`cross_section`): convex outlines whose edges have outward normals, and
 circles; :func:`cast` computes the range of every beam of one or more scanners in one
-vectorised pass. pybullet's ``rayTestBatch`` stays a selectable backend
+compiled pass (``sim._kernels``). pybullet's ``rayTestBatch`` stays a selectable backend
 (``WorldSettings.laser_backend``).
 """
 
@@ -19,10 +19,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sim._kernels import cast_from_pose_kernel, cast_kernel
 from sim.scenario import Box, Scenario
 from sim.types import Pose2D
-
-_TWO_PI = 2.0 * math.pi
 
 
 @dataclass(frozen=True, slots=True)
@@ -111,30 +110,6 @@ def cross_section(scenario: Scenario, height: float) -> CrossSection:
     return CrossSection(height, a, b, normals, centres, radii)
 
 
-def _beam_pairs(
-    lo: np.ndarray, span: np.ndarray, step: float, n: int
-) -> tuple[np.ndarray, np.ndarray]:
-    """Expand angular intervals into (interval index, beam index) pairs.
-
-    ``lo`` (m,) in [0, 2 pi) and ``span`` (m,) in [0, pi] are angles relative to
-    beam 0; beam k points at ``k * step``. An interval that runs past 2 pi also
-    covers the beams in [0, lo + span - 2 pi].
-    """
-    wraps = np.flatnonzero(lo + span >= _TWO_PI)
-    if len(wraps):  # the wrapped part as an interval of its own
-        lo = np.concatenate((lo, np.zeros(len(wraps))))
-        span = np.concatenate((span, span[wraps] + lo[wraps] - _TWO_PI))
-        owner_of = np.concatenate((np.arange(len(span) - len(wraps)), wraps))
-    else:
-        owner_of = None
-    first = np.ceil(lo / step).astype(np.int64)
-    last = np.minimum(np.floor((lo + span) / step).astype(np.int64), n - 1)
-    count = np.maximum(last - first + 1, 0)
-    interval = np.repeat(np.arange(len(lo)), count)
-    beam = np.arange(len(interval)) - np.repeat(np.cumsum(count) - count - first, count)
-    return (interval if owner_of is None else owner_of[interval]), beam
-
-
 def cast(
     section: CrossSection,
     origins: np.ndarray,
@@ -160,51 +135,54 @@ def cast(
     ranges : (m, n) [m] distance from each origin to the first surface hit, exactly
         ``max_range`` where nothing lies within ``max_range``.
     """
-    origins = np.asarray(origins, dtype=float).reshape(-1, 2)
-    first = np.asarray(first_angles, dtype=float).reshape(-1)
-    ranges = np.full(len(origins) * n, max_range)
-    beam_angles = (first[:, None] + step * np.arange(n)).ravel()
-    cos_b, sin_b = np.cos(beam_angles), np.sin(beam_angles)
-
-    # (sensor, edge) pairs with the edge facing the sensor (closed convex outlines: the
-    # back faces are hidden behind the front ones), (sensor, circle) pairs with the
-    # circle not containing the sensor nor out of its range.
-    rel_a = section.edge_a - origins[:, None, :]  # (m, s, 2)
-    offset = np.einsum("sj,msj->ms", section.normals, rel_a)  # n . (a - o)
-    le, se = np.nonzero(offset < 0.0)
-    rel_a, offset = rel_a[le, se], offset[le, se]
-    normals = section.normals[se]
-    rel_c = section.centres - origins[:, None, :]  # (m, c, 2)
-    dist = np.hypot(rel_c[..., 0], rel_c[..., 1])
-    lc, sc = np.nonzero((dist > section.radii) & (dist - section.radii < max_range))
-    rel_c, dist, radii = rel_c[lc, sc], dist[lc, sc], section.radii[sc]
-    k = len(le)
-
-    # Angular intervals relative to beam 0: edges from end to end, circles centre +- half.
-    ends = np.concatenate((rel_a, section.edge_b[se] - origins[le], rel_c))
-    ang = np.arctan2(ends[:, 1], ends[:, 0]) - np.concatenate((first[le], first[le], first[lc]))
-    sweep = np.mod(ang[k : 2 * k] - ang[:k] + math.pi, _TWO_PI) - math.pi  # in (-pi, pi)
-    half = np.arcsin(radii / dist)
-    lo = np.mod(
-        np.concatenate((np.where(sweep < 0.0, ang[k : 2 * k], ang[:k]), ang[2 * k :] - half)),
-        _TWO_PI,
+    origins = np.ascontiguousarray(origins, dtype=float).reshape(-1, 2)
+    first = np.ascontiguousarray(first_angles, dtype=float).reshape(-1)
+    s = section
+    return cast_kernel(
+        s.edge_a,
+        s.edge_b,
+        s.normals,
+        s.centres,
+        s.radii,
+        origins,
+        first,
+        float(step),
+        int(n),
+        float(max_range),
     )
-    owner, beam = _beam_pairs(lo, np.concatenate((np.abs(sweep), 2.0 * half)), step, n)
-    if len(owner) == 0:
-        return ranges.reshape(-1, n)
-    beam += np.concatenate((le, lc))[owner] * n  # index into the flat (m * n) fans
-    on_edge = owner < k
 
-    e, be = owner[on_edge], beam[on_edge]
-    # Ray o + t d meets the edge's line n . (p - a) = 0 at t = n . (a - o) / n . d;
-    # n . (a - o) < 0 for a facing edge, and n . d < 0 for a beam that hits its face.
-    den = normals[e, 0] * cos_b[be] + normals[e, 1] * sin_b[be]
-    t_edge = np.divide(offset[e], den, out=np.full(len(e), np.inf), where=den < 0.0)
 
-    c, bc = owner[~on_edge] - k, beam[~on_edge]
-    along = rel_c[c, 0] * cos_b[bc] + rel_c[c, 1] * sin_b[bc]
-    perp_sq = dist[c] ** 2 - along**2
-    t_circle = along - np.sqrt(np.maximum(radii[c] ** 2 - perp_sq, 0.0))
+def cast_from(
+    section: CrossSection,
+    pose: Pose2D,
+    positions: np.ndarray,
+    firsts: np.ndarray,
+    step: float,
+    n: int,
+    max_range: float,
+) -> np.ndarray:
+    """:func:`cast` for sensors on a robot at map ``pose``: mounted at robot-frame
+    ``positions`` (m, 2) [m] with beam 0 at robot-frame ``firsts`` (m,) [rad]; the same
+    numbers as ``cast(section, pose.to_map_frame(positions), pose.yaw + firsts, ...)``.
+    Both arrays must be contiguous float64 (``sim.lasers.Fans`` holds them so).
 
-    np.minimum.at(ranges, np.concatenate((be, bc)), np.concatenate((t_edge, t_circle)))
-    return ranges.reshape(-1, n)
+    Returns
+    -------
+    ranges : (m, n) [m].
+    """
+    s = section
+    return cast_from_pose_kernel(
+        s.edge_a,
+        s.edge_b,
+        s.normals,
+        s.centres,
+        s.radii,
+        pose.x,
+        pose.y,
+        pose.yaw,
+        positions,
+        firsts,
+        float(step),
+        int(n),
+        float(max_range),
+    )

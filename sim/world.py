@@ -19,13 +19,14 @@ from typing import Any
 
 import numpy as np
 
+from sim._kernels import scan_kernel
 from sim._pybullet import pybullet as p
 from sim.bodies import JOINTS, SCENE_GROUP, build_robot, build_scene
 from sim.lasers import Fans, laser_beams, laser_fans, laser_rays
 from sim.scenario import Scenario
 from sim.scene import RobotSpec
 from sim.semantics import RobotFrameComponents, derive_components, in_robot_frame
-from sim.sensors import cast
+from sim.sensors import cast_from
 from sim.types import (
     Contact,
     ImuReading,
@@ -357,13 +358,15 @@ class World:
         if self._ranges_key == key:
             return self._ranges
         out = np.empty(self._rays.start[-1])
+        analytic = self.settings.laser_backend == "analytic"
         for fan in self._fans:
-            origins = pose.to_map_frame(fan.positions)
-            firsts = pose.yaw + fan.firsts
-            if self.settings.laser_backend == "analytic":
-                ranges = cast(fan.section, origins, firsts, fan.step, fan.n, fan.max_range)
+            if analytic:
+                ranges = cast_from(
+                    fan.section, pose, fan.positions, fan.firsts, fan.step, fan.n, fan.max_range
+                )
             else:
-                ranges = self._ray_test(fan, origins, firsts)
+                origins = pose.to_map_frame(fan.positions)
+                ranges = self._ray_test(fan, origins, pose.yaw + fan.firsts)
             for i, r in zip(fan.members, ranges, strict=True):
                 out[self._rays.start[i] : self._rays.start[i + 1]] = r
         out.flags.writeable = False
@@ -426,21 +429,17 @@ class World:
         sv = self.settings.velocity_sigma
         velocity = np.array([vel[0] + sv * z[6], vel[1] + sv * z[7], yaw_rate])
 
-        true = self._true_ranges(pose)
-        ranges = np.where(
-            true < rays.max_range,
-            np.clip(true + rays.sigma * z[8:], rays.min_range, rays.max_range),
+        ranges, points = scan_kernel(
+            self._true_ranges(pose),
+            z[8:],
+            rays.sigma,
+            rays.min_range,
             rays.max_range,
+            rays.cos,
+            rays.sin,
+            rays.x0,
+            rays.y0,
         )
-        seen = ranges < rays.max_range
-        # every beam's end point, then the hits: the same numbers as indexing first, in
-        # fewer numpy calls
-        ends = np.empty((len(ranges), 2))
-        np.multiply(ranges, rays.cos, out=ends[:, 0])
-        ends[:, 0] += rays.x0
-        np.multiply(ranges, rays.sin, out=ends[:, 1])
-        ends[:, 1] += rays.y0
-        points = ends[seen]
         scans = tuple(
             LaserScan(
                 name=spec.name,

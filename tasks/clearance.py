@@ -17,6 +17,7 @@ import math
 
 import numpy as np
 
+from tasks._geometry_kernels import min_norm_sq
 from tasks.primary import CLEARANCE_BIN_EDGES_M
 
 
@@ -33,10 +34,10 @@ def lrf_range(points: np.ndarray) -> float:
     float
         ``min_i |p_i|``; ``inf`` without hits (nothing within range).
     """
-    p = np.asarray(points, dtype=float).reshape(-1, 2)
+    p = np.ascontiguousarray(points, dtype=float).reshape(-1, 2)
     if len(p) == 0:
         return math.inf
-    return float(np.sqrt(np.einsum("ij,ij->i", p, p).min()))
+    return math.sqrt(min_norm_sq(p))
 
 
 class RangeStats:

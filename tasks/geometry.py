@@ -7,6 +7,8 @@ import math
 
 import numpy as np
 
+from tasks._geometry_kernels import box_clearance_sq, box_of
+
 
 def polygon_distances(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
     """Euclidean distance from each point to a filled polygon, 0 inside.
@@ -68,37 +70,20 @@ def footprint_clearance(points: np.ndarray, footprint: np.ndarray) -> float:
     Notes
     -----
     An axis-aligned rectangle (any robot's ``RobotSpec.footprint()``) takes a
-    closed-form path; it equals the general result of :func:`polygon_distances` to
-    rounding (~1e-16 m).
+    closed-form path (compiled, ``tasks._geometry_kernels``); it equals the general
+    result of :func:`polygon_distances` to rounding (~1e-16 m).
     """
-    box = _axis_aligned_box(footprint)
-    if box is None:
+    a = np.ascontiguousarray(footprint, dtype=float)
+    is_box, x0, x1, y0, y1 = box_of(a) if a.ndim == 2 else (False, 0.0, 0.0, 0.0, 0.0)
+    if not is_box:
         d = polygon_distances(points, footprint)
         return float(d.min()) if len(d) else math.inf
-    p = np.asarray(points, dtype=float).reshape(-1, 2)
-    if not np.all(np.isfinite(p)):
-        raise ValueError("points: must be finite")
+    p = np.ascontiguousarray(points, dtype=float).reshape(-1, 2)
     if len(p) == 0:
         return math.inf
     # the robot's rectangle, axis-aligned in its own frame: per point, the distance to
     # the rectangle is the norm of how far it lies outside each slab (0 inside)
-    x0, x1, y0, y1 = box
-    x, y = p[:, 0], p[:, 1]
-    dx = np.maximum(np.maximum(x0 - x, x - x1), 0.0)
-    dy = np.maximum(np.maximum(y0 - y, y - y1), 0.0)
-    return math.sqrt(float((dx * dx + dy * dy).min()))
-
-
-def _axis_aligned_box(polygon: np.ndarray) -> tuple[float, float, float, float] | None:
-    """``(x_min, x_max, y_min, y_max)`` [m] if ``polygon`` (4, 2) is an axis-aligned
-    rectangle of positive area (edges alternately along x and y), else None."""
-    a = np.asarray(polygon, dtype=float)
-    if a.shape != (4, 2) or not np.all(np.isfinite(a)):
-        return None
-    (ax, ay), (bx, by), (cx, cy), (dx, dy) = a.tolist()
-    x_first = ay == by and bx == cx and cy == dy and dx == ax  # edges x, y, x, y
-    y_first = ax == bx and by == cy and cx == dx and dy == ay  # edges y, x, y, x
-    if not (x_first or y_first):
-        return None
-    x0, x1, y0, y1 = min(ax, cx), max(ax, cx), min(ay, cy), max(ay, cy)
-    return (x0, x1, y0, y1) if x0 < x1 and y0 < y1 else None
+    d2 = box_clearance_sq(p, x0, x1, y0, y1)
+    if math.isnan(d2):
+        raise ValueError("points: must be finite")
+    return math.sqrt(d2)
