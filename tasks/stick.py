@@ -48,15 +48,17 @@ class HumanStickSettings:
             )
 
 
-def _axis(value: float, full: float, s: HumanStickSettings) -> float:
-    """One channel of the stick: ``value / full`` clipped to [-1, 1], the deadzone, the
-    quantisation to ``levels`` steps; as ``numpy.clip``, ``numpy.where`` and
+def _axis(value: float, full: float, deadzone: float, levels: int) -> float:
+    """One channel of the stick: ``value / full`` clipped to [-1, 1], the ``deadzone``,
+    the quantisation to ``levels`` steps; as ``numpy.clip``, ``numpy.where`` and
     ``numpy.round`` (half to even, keeping the sign of a zero) do it on an array."""
-    axis = min(max(value / full, -1.0), 1.0)
-    if abs(axis) < s.deadzone:
+    axis = value / full
+    axis = -1.0 if -1.0 > axis else axis  # min(max(axis, -1.0), 1.0), as Python does it
+    axis = 1.0 if 1.0 < axis else axis
+    if abs(axis) < deadzone:
         return 0.0
-    scaled = axis * s.levels
-    return math.copysign(float(round(scaled)), scaled) / s.levels
+    scaled = axis * levels
+    return math.copysign(float(round(scaled)), scaled) / levels
 
 
 class HumanStick:
@@ -125,10 +127,10 @@ class HumanStick:
         self._noise = n0, n1, n2 = (a * n0 + b0 * z0, a * n1 + b1 * z1, a * n2 + b2 * z2)
         if abs(u0) > 1e-9 or abs(u1) > 1e-9 or abs(u2) > 1e-9:  # a hand off the stick
             u0, u1, u2 = u0 + n0, u1 + n1, u2 + n2  # does not tremble
-        full_v, full_w = s.max_speed, s.max_yaw_rate
-        out0 = _axis(u0, full_v, s) * full_v
-        out1 = _axis(u1, full_v, s) * full_v
-        out2 = _axis(u2, full_w, s) * full_w
+        full_v, full_w, dead, levels = s.max_speed, s.max_yaw_rate, s.deadzone, s.levels
+        out0 = _axis(u0, full_v, dead, levels) * full_v
+        out1 = _axis(u1, full_v, dead, levels) * full_v
+        out2 = _axis(u2, full_w, dead, levels) * full_w
         if out0 * out0 + out1 * out1 > s.max_speed * s.max_speed * (1.0 - 1e-9):
             speed = float(np.hypot(out0, out1))  # numpy's hypot, as before
             if speed > s.max_speed:

@@ -85,6 +85,9 @@ class ScriptedSettings:
 # costs about 0.1 s, paid once per route instead of once per trial.
 _PATHS: dict[tuple[Any, ...], np.ndarray] = {}
 _MAX_PATHS = 256
+# the orbits about the inspection object likewise (about 40 ms each: the inflated grid and
+# 72 candidate arcs): the entry point (2,) [m] and the orbit, by scene, arc, ends, settings
+_ORBITS: dict[tuple[Any, ...], tuple[np.ndarray, _OrbitLeg]] = {}
 ORBIT_EXTRA = math.pi / 2  # [rad] an orbit goes on this far beyond its plan while watching
 _ZERO = (0.0, 0.0, 0.0)  # [m/s, m/s, rad/s] no command
 
@@ -273,6 +276,28 @@ class ScriptedParticipant(ParticipantBase):
             smooth[2:-2, k] = np.convolve(out[:, k], kernel, mode="valid")
         return smooth
 
+    def _orbit(
+        self, scenario: Scenario, grid: OccupancyGrid, arc: float, a: np.ndarray, b: np.ndarray
+    ) -> tuple[np.ndarray, _OrbitLeg]:
+        """:meth:`_orbit_plan`, planned once per process (the entry point read-only)."""
+        key = (
+            scenario.source or scenario.name,
+            scenario.inspection_object,
+            arc,
+            a.tobytes(),
+            b.tobytes(),
+            self.settings.orbit_distance_m,
+            self.settings.clearances_m,
+        )
+        if key not in _ORBITS:
+            if len(_ORBITS) >= _MAX_PATHS:
+                _ORBITS.pop(next(iter(_ORBITS)))
+            entry, orbit = self._orbit_plan(scenario, grid, arc, a, b)
+            entry = entry.copy()
+            entry.setflags(write=False)
+            _ORBITS[key] = (entry, orbit)
+        return _ORBITS[key]
+
     def _orbit_plan(
         self, scenario: Scenario, grid: OccupancyGrid, arc: float, a: np.ndarray, b: np.ndarray
     ) -> tuple[np.ndarray, _OrbitLeg]:
@@ -336,7 +361,7 @@ class ScriptedParticipant(ParticipantBase):
             if isinstance(element, Box | Cylinder):
                 self._watch = inspection_tracker(element, primary)
             arc = math.radians(primary.min_arc_deg + self.settings.arc_margin_deg)
-            entry, orbit = self._orbit_plan(scenario, grid, arc, here, goals[0][0])
+            entry, orbit = self._orbit(scenario, grid, arc, here, goals[0][0])
             self._legs.append(_PathLeg(self._path(scenario, here, entry), None, True, orbit.centre))
             self._legs.append(orbit)
             c = np.asarray(orbit.centre)
