@@ -48,15 +48,17 @@ class HumanStickSettings:
             )
 
 
-def _axis(value: float, full: float, s: HumanStickSettings) -> float:
-    """One channel of the stick: ``value / full`` clipped to [-1, 1], the deadzone, the
-    quantisation to ``levels`` steps; as ``numpy.clip``, ``numpy.where`` and
+def _axis(value: float, full: float, deadzone: float, levels: int) -> float:
+    """One channel of the stick: ``value / full`` clipped to [-1, 1], the ``deadzone``,
+    the quantisation to ``levels`` steps; as ``numpy.clip``, ``numpy.where`` and
     ``numpy.round`` (half to even, keeping the sign of a zero) do it on an array."""
-    axis = min(max(value / full, -1.0), 1.0)
-    if abs(axis) < s.deadzone:
+    axis = value / full
+    axis = -1.0 if -1.0 > axis else axis  # min(max(axis, -1.0), 1.0), as Python does it
+    axis = 1.0 if 1.0 < axis else axis
+    if abs(axis) < deadzone:
         return 0.0
-    scaled = axis * s.levels
-    return math.copysign(float(round(scaled)), scaled) / s.levels
+    scaled = axis * levels
+    return math.copysign(float(round(scaled)), scaled) / levels
 
 
 class HumanStick:
@@ -76,6 +78,10 @@ class HumanStick:
         self._noise = (0.0, 0.0, 0.0)
         self._gain = 1.0
         self._episode_left = 0
+        # per-tick constants: the noise's AR(1) factor a and b * sigma per channel
+        a = math.exp(-s.dt / s.noise_tau_s)
+        b = math.sqrt(1 - a * a)
+        self._ab = (a, b * s.noise_sigma[0], b * s.noise_sigma[1], b * s.noise_sigma[2])
 
     def filter(self, u_ideal: np.ndarray) -> np.ndarray:
         """The stick command for this tick.
@@ -90,6 +96,11 @@ class HumanStick:
         numpy.ndarray
             (3,) what the hand actually commands, within the robot's limits.
         """
+        u0, u1, u2 = (float(c) for c in u_ideal)
+        return np.array(self.filter_uvw(u0, u1, u2))
+
+    def filter_uvw(self, u0: float, u1: float, u2: float) -> tuple[float, float, float]:
+        """:meth:`filter` of the ideal command ``(u0, u1, u2)`` as floats."""
         s = self.settings
         if not hasattr(self, "_rng"):
             raise RuntimeError("HumanStick.filter called before reset()")
@@ -97,7 +108,6 @@ class HumanStick:
         # IEEE operations in the same order as the array form, so the same result
         z0, z1, z2 = self._rng.standard_normal(3).tolist()
         onset, g, dur = self._rng.random(3).tolist()  # always three, to keep the stream aligned
-        u0, u1, u2 = (float(c) for c in u_ideal)
         k = s.preferred_speed / s.reference_speed
         u0, u1 = u0 * k, u1 * k
         if self._episode_left > 0:
@@ -112,21 +122,18 @@ class HumanStick:
         gain = self._gain
         self._fifo.append((u0 * gain, u1 * gain, u2 * gain))
         u0, u1, u2 = self._fifo.popleft()
-        a = math.exp(-s.dt / s.noise_tau_s)
-        b = math.sqrt(1 - a * a)
+        a, b0, b1, b2 = self._ab
         n0, n1, n2 = self._noise
-        sg0, sg1, sg2 = s.noise_sigma
-        self._noise = (a * n0 + b * sg0 * z0, a * n1 + b * sg1 * z1, a * n2 + b * sg2 * z2)
+        self._noise = n0, n1, n2 = (a * n0 + b0 * z0, a * n1 + b1 * z1, a * n2 + b2 * z2)
         if abs(u0) > 1e-9 or abs(u1) > 1e-9 or abs(u2) > 1e-9:  # a hand off the stick
-            n0, n1, n2 = self._noise  # does not tremble
-            u0, u1, u2 = u0 + n0, u1 + n1, u2 + n2
-        full_v, full_w = s.max_speed, s.max_yaw_rate
-        out0 = _axis(u0, full_v, s) * full_v
-        out1 = _axis(u1, full_v, s) * full_v
-        out2 = _axis(u2, full_w, s) * full_w
-        out = np.array((out0, out1, out2))
+            u0, u1, u2 = u0 + n0, u1 + n1, u2 + n2  # does not tremble
+        full_v, full_w, dead, levels = s.max_speed, s.max_yaw_rate, s.deadzone, s.levels
+        out0 = _axis(u0, full_v, dead, levels) * full_v
+        out1 = _axis(u1, full_v, dead, levels) * full_v
+        out2 = _axis(u2, full_w, dead, levels) * full_w
         if out0 * out0 + out1 * out1 > s.max_speed * s.max_speed * (1.0 - 1e-9):
             speed = float(np.hypot(out0, out1))  # numpy's hypot, as before
             if speed > s.max_speed:
-                out[:2] *= s.max_speed / speed
-        return out
+                scale = s.max_speed / speed
+                out0, out1 = out0 * scale, out1 * scale
+        return out0, out1, out2

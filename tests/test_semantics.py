@@ -562,3 +562,19 @@ def test_robot_frame_components_give_single_components_and_targets_lazily(rng):
             lazy[-n - 1]
         assert [c.id for c in lazy[2:5]] == [c.id for c in eager[2:5]]  # slices: all
         assert "not yet" not in repr(lazy) and lazy[4] is lazy.materialise()[4]
+
+
+def test_equal_scenarios_are_derived_once_and_as_before():
+    from sim.semantics.derive import _derive
+
+    a, b = load_scenario("cluttered_room"), load_scenario("cluttered_room")
+    assert a is not b and derive_components(a) is derive_components(b)  # cached
+    fresh = _derive(a)
+    assert [c.id for c in fresh] == [c.id for c in derive_components(a)]
+    for got, want in zip(derive_components(a), fresh, strict=True):
+        for field in ("centre", "points", "ends", "normal"):
+            assert np.array_equal(getattr(got, field), getattr(want, field))
+        assert got.width == want.width or (math.isnan(got.width) and math.isnan(want.width))
+    other = copy.deepcopy(a)
+    object.__setattr__(other, "name", "cluttered_room_moved")  # any other content: derived anew
+    assert derive_components(other) is not derive_components(a)

@@ -386,8 +386,9 @@ def test_human_stick_equals_its_array_formulation_bit_for_bit(seed, scale, delay
     assert np.array_equal(np.signbit(got), np.signbit(want))  # signed zeros as well
 
 
-def _ref_guard(u: np.ndarray, points: np.ndarray, s: SkillSettings) -> np.ndarray:
-    from tasks.guard import _GUARD_OFFSETS, _free_all, _turn_guard
+def _ref_guard_all_points(u: np.ndarray, points: np.ndarray, s: SkillSettings) -> np.ndarray:
+    """The guard's reference formulation over every point (no reach filter)."""
+    from tests.guard_reference import _GUARD_OFFSETS, _free_all, _turn_guard
 
     if len(points) == 0:
         return u
@@ -422,7 +423,7 @@ def test_guard_on_the_near_points_equals_the_guard_on_all_of_them(rng):
         points = np.column_stack((ranges * np.cos(angles), ranges * np.sin(angles)))
         u = rng.normal(0.0, 0.5, 3) * rng.integers(0, 2, 3)
         got = guard_command(u, points, s)
-        want = _ref_guard(np.asarray(u, dtype=float), points, s)
+        want = _ref_guard_all_points(np.asarray(u, dtype=float), points, s)
         # equal up to the last bits of numpy's matrix product over different point counts
         np.testing.assert_allclose(got, want, rtol=0.0, atol=1e-12)
 

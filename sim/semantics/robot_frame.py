@@ -10,14 +10,16 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
+from numba import njit
 
 from sim.types import Pose2D, SemanticComponent
 
 _EMPTY = np.empty((0, 2))
 _EMPTY.flags.writeable = False
+_INDEX = (int, np.integer)  # what indexes one component
 
 
 @dataclass(frozen=True, slots=True)
@@ -128,34 +130,58 @@ def in_robot_frame(
 def _transform_stacked(packed: _Packed, pose: Pose2D) -> np.ndarray:
     """The stacked coordinates of ``packed`` (a layout with ``n > 0``) seen from ``pose``:
     (rows, 2) [m], read-only (the arithmetic of :func:`in_robot_frame`)."""
-    n = packed.layout.n
     c, s = math.cos(pose.yaw), math.sin(pose.yaw)
-    x, y = packed.x, packed.y
-    out = np.empty((len(x), 2))
-    ox, oy = out[:, 0], out[:, 1]
-    np.multiply(x, c, out=ox)  # the rotation of Pose2D.to_robot_frame
-    ox += s * y
-    np.multiply(y, c, out=oy)
-    oy -= s * x
-    ox[n:] -= c * pose.x + s * pose.y  # positions are shifted, normals (rows < n) are not
-    oy[n:] -= -s * pose.x + c * pose.y
+    # positions are shifted by the pose's position seen from the robot, normals are not
+    shift_x = c * pose.x + s * pose.y
+    shift_y = -s * pose.x + c * pose.y
+    out = _rotate_shift(packed.stacked, packed.layout.n, c, s, shift_x, shift_y)
     out.flags.writeable = False
     return out
+
+
+@njit(cache=True)
+def _rotate_shift(
+    stacked: np.ndarray, n: int, c: float, s: float, shift_x: float, shift_y: float
+) -> np.ndarray:
+    """The rows (x, y) [m] of ``stacked`` (rows, 2) rotated into the robot frame,
+    ``(x c + s y, y c - s x)``, the rows from ``n`` on then less (shift_x, shift_y):
+    (rows, 2) [m]. The floating-point operations of numpy's in-place form
+    (``x * c``, ``+= s * y``, ``-= shift``) in the same order."""
+    out = np.empty((stacked.shape[0], 2))
+    for r in range(stacked.shape[0]):
+        x, y = stacked[r, 0], stacked[r, 1]
+        ox = x * c + s * y
+        oy = y * c - s * x
+        if r >= n:
+            ox -= shift_x
+            oy -= shift_y
+        out[r, 0], out[r, 1] = ox, oy
+    return out
+
+
+# SemanticComponent's fields in order and their slots' setters: a component is filled in
+# field by field, as its frozen dataclass __init__ does, without that __init__'s
+# object.__setattr__ per field (11 components a tick in the contextual mode)
+_FIELDS = ("id", "kind", "centre", "points", "ends", "width", "normal", "source")
+if tuple(f.name for f in fields(SemanticComponent)) != _FIELDS:  # pragma: no cover
+    raise ImportError("sim.semantics.robot_frame: SemanticComponent's fields changed")
+_SETTERS = tuple(SemanticComponent.__dict__[name].__set__ for name in _FIELDS)
 
 
 def _component_at(out: np.ndarray, lay: _Layout, i: int) -> SemanticComponent:
     """Component ``i`` of the layout ``lay`` on the stacked coordinates ``out`` (views)."""
     cid, kind, width, source, pts, ends = lay.items[i]
-    return SemanticComponent(
-        cid,
-        kind,
-        out[lay.n + i],
-        _EMPTY if pts is None else out[pts],
-        _EMPTY if ends is None else out[ends],
-        width,
-        out[i],
-        source,
-    )
+    set_id, set_kind, set_centre, set_points, set_ends, set_width, set_normal, set_source = _SETTERS
+    component = object.__new__(SemanticComponent)
+    set_id(component, cid)
+    set_kind(component, kind)
+    set_centre(component, out[lay.n + i])
+    set_points(component, _EMPTY if pts is None else out[pts])
+    set_ends(component, _EMPTY if ends is None else out[ends])
+    set_width(component, width)
+    set_normal(component, out[i])
+    set_source(component, source)
+    return component
 
 
 def _components_of(out: np.ndarray, lay: _Layout) -> _Packed:
@@ -247,7 +273,7 @@ class RobotFrameComponents(Sequence[SemanticComponent]):
         return len(self._map)
 
     def __getitem__(self, index):  # type: ignore[no-untyped-def]
-        if self._seen is None and isinstance(index, int | np.integer):
+        if self._seen is None and isinstance(index, _INDEX):
             out = self._stacked()
             if out is not None:  # one component, equal to the materialised one
                 n = self._map.layout.n
@@ -292,13 +318,26 @@ def target_points(components: Sequence[SemanticComponent]) -> np.ndarray:
 
 def _packed_target_points(stacked: np.ndarray, lay: _Layout) -> np.ndarray:
     """:func:`target_points` of packed components from their stacked coordinates."""
-    candidates = stacked[lay.target_rows]  # (m, 2)
-    sq = np.einsum("ij,ij->i", candidates, candidates)
-    lowest = np.minimum.reduceat(sq, lay.target_starts)
-    counts = np.diff(np.append(lay.target_starts, len(sq)))
-    at_min = np.flatnonzero(sq == np.repeat(lowest, counts))
-    first = at_min[np.searchsorted(at_min, lay.target_starts)]  # first minimum per run
-    return candidates[first]
+    return _nearest_rows(stacked, lay.target_rows, lay.target_starts)
+
+
+@njit(cache=True)
+def _nearest_rows(stacked: np.ndarray, rows: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """Per run of ``rows`` (the runs begin at ``starts``, (n,)), the row of ``stacked``
+    (m, 2) [m] nearest the origin, the first on ties: (n, 2) [m]. Squared distances are
+    ``x * x + y * y``, what ``numpy.einsum("ij,ij->i", ...)`` computes of two columns."""
+    n = starts.shape[0]
+    out = np.empty((n, 2))
+    for k in range(n):
+        stop = starts[k + 1] if k + 1 < n else rows.shape[0]
+        best, low = rows[starts[k]], math.inf
+        for j in range(starts[k], stop):
+            x, y = stacked[rows[j], 0], stacked[rows[j], 1]
+            sq = x * x + y * y
+            if sq < low:
+                best, low = rows[j], sq
+        out[k, 0], out[k, 1] = stacked[best, 0], stacked[best, 1]
+    return out
 
 
 def target_distances(components: Sequence[SemanticComponent]) -> np.ndarray:

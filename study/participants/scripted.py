@@ -13,6 +13,7 @@ from dataclasses import asdict, dataclass
 from typing import Any
 
 import numpy as np
+from numba import njit
 
 from sim.occupancy import OccupancyGrid, build_grid, clearance_map, inflate, shortest_path
 from sim.scenario import Box, Cylinder, Scenario
@@ -84,20 +85,32 @@ class ScriptedSettings:
 # costs about 0.1 s, paid once per route instead of once per trial.
 _PATHS: dict[tuple[Any, ...], np.ndarray] = {}
 _MAX_PATHS = 256
+# the orbits about the inspection object likewise (about 40 ms each: the inflated grid and
+# 72 candidate arcs): the entry point (2,) [m] and the orbit, by scene, arc, ends, settings
+_ORBITS: dict[tuple[Any, ...], tuple[np.ndarray, _OrbitLeg]] = {}
 ORBIT_EXTRA = math.pi / 2  # [rad] an orbit goes on this far beyond its plan while watching
-_AHEAD_CHUNK = 32  # path points per look for the lookahead point (_follow_path)
+_ZERO = (0.0, 0.0, 0.0)  # [m/s, m/s, rad/s] no command
 
 
-def fast_norm(v: np.ndarray) -> float:
-    """``float(numpy.linalg.norm(v))`` of a 1-D float array, what it computes (the square
-    root of ``v.dot(v)``) without its dispatch overhead: the same number."""
-    return math.sqrt(v.dot(v))
-
-
-def _row_norms(rows: np.ndarray) -> np.ndarray:
-    """``numpy.linalg.norm(rows, axis=1)`` of a 2-D float array, what it computes: the
-    same numbers."""
-    return np.sqrt(np.add.reduce(rows * rows, axis=1))
+@njit(cache=True)
+def _path_progress(
+    pts: np.ndarray, progress: int, px: float, py: float, lookahead: float
+) -> tuple[int, int]:
+    """Where the robot at (px, py) [m] is on the path ``pts`` (k, 2) [m]: the nearest of
+    the 40 points from ``progress`` on (the first on ties), and the first point from
+    there on at least ``lookahead`` [m] away (-1: none). Distances are
+    ``sqrt(dx * dx + dy * dy)``, what ``numpy.linalg.norm`` of the rows computes."""
+    best, best_d = progress, math.inf
+    for j in range(progress, min(progress + 40, pts.shape[0])):
+        dx, dy = pts[j, 0] - px, pts[j, 1] - py
+        d = math.sqrt(dx * dx + dy * dy)
+        if j == progress or d < best_d or (math.isnan(d) and not math.isnan(best_d)):
+            best, best_d = j, d
+    for j in range(best, pts.shape[0]):
+        dx, dy = pts[j, 0] - px, pts[j, 1] - py
+        if math.sqrt(dx * dx + dy * dy) >= lookahead:
+            return best, j
+    return best, -1
 
 
 def _clip(value: float, limit: float) -> float:
@@ -174,7 +187,7 @@ class ScriptedParticipant(ParticipantBase):
         self._still_since = math.nan  # [s] when it last started pushing without moving
         self._still_at = (math.nan, math.nan, math.nan)  # pose then
         self._backoff_until = -math.inf  # [s]
-        self._backoff_u = np.zeros(3)
+        self._backoff_u = _ZERO
         self._stuck = 0  # stuck episodes on the current leg
         # the inspection as the task counts it, watched while orbiting (None: no object)
         self._watch: InspectionTracker | None = None
@@ -263,6 +276,28 @@ class ScriptedParticipant(ParticipantBase):
             smooth[2:-2, k] = np.convolve(out[:, k], kernel, mode="valid")
         return smooth
 
+    def _orbit(
+        self, scenario: Scenario, grid: OccupancyGrid, arc: float, a: np.ndarray, b: np.ndarray
+    ) -> tuple[np.ndarray, _OrbitLeg]:
+        """:meth:`_orbit_plan`, planned once per process (the entry point read-only)."""
+        key = (
+            scenario.source or scenario.name,
+            scenario.inspection_object,
+            arc,
+            a.tobytes(),
+            b.tobytes(),
+            self.settings.orbit_distance_m,
+            self.settings.clearances_m,
+        )
+        if key not in _ORBITS:
+            if len(_ORBITS) >= _MAX_PATHS:
+                _ORBITS.pop(next(iter(_ORBITS)))
+            entry, orbit = self._orbit_plan(scenario, grid, arc, a, b)
+            entry = entry.copy()
+            entry.setflags(write=False)
+            _ORBITS[key] = (entry, orbit)
+        return _ORBITS[key]
+
     def _orbit_plan(
         self, scenario: Scenario, grid: OccupancyGrid, arc: float, a: np.ndarray, b: np.ndarray
     ) -> tuple[np.ndarray, _OrbitLeg]:
@@ -326,7 +361,7 @@ class ScriptedParticipant(ParticipantBase):
             if isinstance(element, Box | Cylinder):
                 self._watch = inspection_tracker(element, primary)
             arc = math.radians(primary.min_arc_deg + self.settings.arc_margin_deg)
-            entry, orbit = self._orbit_plan(scenario, grid, arc, here, goals[0][0])
+            entry, orbit = self._orbit(scenario, grid, arc, here, goals[0][0])
             self._legs.append(_PathLeg(self._path(scenario, here, entry), None, True, orbit.centre))
             self._legs.append(orbit)
             c = np.asarray(orbit.centre)
@@ -367,10 +402,15 @@ class ScriptedParticipant(ParticipantBase):
     def act(self, obs: Observation, screen: ScreenState) -> ParticipantInput:
         """Follow the plan and answer questions."""
         answer = self._answer(screen, obs.t)
-        u = np.zeros(3)
+        return ParticipantInput(u=np.array(self.command(obs, screen.paused)), answer=answer)
+
+    def command(self, obs: Observation, paused: bool) -> tuple[float, float, float]:
+        """The driving part of :meth:`act`: the command (v_x, v_y, omega) [m/s, m/s,
+        rad/s] of this tick (zero when not driving or ``paused``), as plain floats."""
+        u = _ZERO
         if self._watch is not None:
             self._watch.update(obs.pose, obs.velocity)
-        if self._drive and not screen.paused:
+        if self._drive and not paused:
             while self._leg < len(self._legs):
                 leg = self._legs[self._leg]
                 step = (
@@ -385,7 +425,7 @@ class ScriptedParticipant(ParticipantBase):
                 self._progress, self._stuck = 0, 0
                 self._swept, self._last_phi = 0.0, math.nan
             u = self._unstick(obs.t, obs.pose, u)
-        return ParticipantInput(u=u, answer=answer)
+        return u
 
     def _give_up_entry(self, leg: _PathLeg | _OrbitLeg, pose: Pose2D) -> bool:
         """Whether to leave ``leg``, the way to the orbit's entry (it faces the object),
@@ -400,7 +440,9 @@ class ScriptedParticipant(ParticipantBase):
             return False
         return self._stuck >= s.entry_tries
 
-    def _unstick(self, t: float, pose: Pose2D, u: np.ndarray) -> np.ndarray:
+    def _unstick(
+        self, t: float, pose: Pose2D, u: tuple[float, float, float]
+    ) -> tuple[float, float, float]:
         """Back away for ``backoff_s`` after pushing ``stuck_s`` without the robot moving
         (as a person does when the robot will not go where the stick points)."""
         s = self.settings
@@ -414,62 +456,55 @@ class ScriptedParticipant(ParticipantBase):
             self._still_since, self._still_at = t, (pose.x, pose.y, pose.yaw)
             return u
         if t - self._still_since >= s.stuck_s:
-            back = -np.asarray(u[:2]) / math.hypot(u[0], u[1]) * 0.5 * s.speed
-            self._backoff_u = np.array([back[0], back[1], 0.0])
+            norm = math.hypot(u[0], u[1])
+            self._backoff_u = (-u[0] / norm * 0.5 * s.speed, -u[1] / norm * 0.5 * s.speed, 0.0)
             self._backoff_until = t + s.backoff_s
             self._stuck += 1
             self._still_since, self._still_at = t + s.backoff_s, (pose.x, pose.y, pose.yaw)
             return self._backoff_u
         return u
 
-    def _to_robot(self, pose: Pose2D, vx: float, vy: float, w: float) -> np.ndarray:
+    def _to_robot(self, pose: Pose2D, vx: float, vy: float, w: float) -> tuple[float, float, float]:
         c, s = math.cos(pose.yaw), math.sin(pose.yaw)
-        return np.array([c * vx + s * vy, -s * vx + c * vy, _clip(w, self._max_yaw_rate)])
+        return (c * vx + s * vy, -s * vx + c * vy, _clip(w, self._max_yaw_rate))
 
-    def _follow_path(self, pose: Pose2D, leg: _PathLeg) -> np.ndarray | None:
+    def _follow_path(self, pose: Pose2D, leg: _PathLeg) -> tuple[float, float, float] | None:
         s = self.settings
         pts = leg.points
-        pos = np.array([pose.x, pose.y])
-        end = pts[-1]
-        to_end = fast_norm(end - pos)
+        px, py = float(pose.x), float(pose.y)
+        ex, ey = float(pts[-1, 0]), float(pts[-1, 1])
+        dx, dy = ex - px, ey - py
+        to_end = math.sqrt(dx * dx + dy * dy)
         yaw_goal = leg.final_yaw
         if leg.face is not None:
             yaw_goal = math.atan2(leg.face[1] - pose.y, leg.face[0] - pose.x)
         yaw_err = 0.0 if yaw_goal is None else wrap_angle(yaw_goal - pose.yaw)
         if to_end <= s.stop_tolerance_m and abs(yaw_err) <= 0.05:
             return None
-        # progress: the nearest path point from the current one on, within a window
-        window = pts[self._progress : self._progress + 40]
-        self._progress += int(np.argmin(_row_norms(window - pos)))
-        target = end
-        # the first path point from the current one on at least lookahead_m away, looked
-        # for in chunks (it is usually among the next few of hundreds); the same point
-        for lo in range(self._progress, len(pts), _AHEAD_CHUNK):
-            ahead = _row_norms(pts[lo : lo + _AHEAD_CHUNK] - pos)
-            beyond = np.flatnonzero(ahead >= s.lookahead_m)
-            if len(beyond):
-                target = pts[lo + int(beyond[0])]
-                break
-        direction = target - pos
-        dist = fast_norm(direction)
+        # progress: the nearest path point from the current one on, within a window; the
+        # target: the first path point from there on at least lookahead_m away (else B)
+        self._progress, ahead = _path_progress(pts, self._progress, px, py, s.lookahead_m)
+        if ahead >= 0:
+            dx, dy = float(pts[ahead, 0]) - px, float(pts[ahead, 1]) - py
+        dist = math.sqrt(dx * dx + dy * dy)
         speed = min(s.speed, 0.9 * to_end + 0.03) if leg.stop else s.speed
+        vx = vy = 0.0
         if dist > 1e-9:
-            vel = direction / dist * min(speed, dist / 0.05)
-        else:
-            vel = np.zeros(2)
+            limit = min(speed, dist / 0.05)
+            vx, vy = dx / dist * limit, dy / dist * limit
         align = s.align_distance_m if leg.face is None else s.face_distance_m
         if yaw_goal is not None and to_end <= align:
             want = yaw_goal
         elif dist > 0.05:
-            want = math.atan2(direction[1], direction[0])
+            want = math.atan2(dy, dx)
         else:
             want = pose.yaw
         err = wrap_angle(want - pose.yaw)
         if abs(err) > math.radians(50):
-            vel = vel * 0.3  # turn mostly on the spot before driving on
-        return self._to_robot(pose, float(vel[0]), float(vel[1]), s.yaw_gain * err)
+            vx, vy = vx * 0.3, vy * 0.3  # turn mostly on the spot before driving on
+        return self._to_robot(pose, vx, vy, s.yaw_gain * err)
 
-    def _follow_orbit(self, pose: Pose2D, leg: _OrbitLeg) -> np.ndarray | None:
+    def _follow_orbit(self, pose: Pose2D, leg: _OrbitLeg) -> tuple[float, float, float] | None:
         s = self.settings
         cx, cy = leg.centre
         dx, dy = pose.x - cx, pose.y - cy
@@ -490,4 +525,4 @@ class ScriptedParticipant(ParticipantBase):
         w = s.yaw_gain * wrap_angle(face - pose.yaw) + leg.direction * s.orbit_speed / max(
             dist, 0.1
         )
-        return np.array([vx, vy, _clip(w, self._max_yaw_rate)])
+        return (vx, vy, _clip(w, self._max_yaw_rate))

@@ -11,6 +11,7 @@ from dataclasses import replace
 from typing import Any
 
 import numpy as np
+from numba import njit
 
 from questionnaires import nasa_tlx
 from sim.semantics import derive_components
@@ -28,11 +29,10 @@ from study.participants.scripted import (
     ScriptedParticipant,
     ScriptedSettings,
     answer_is_correct,
-    fast_norm,
     uniform_answer,
 )
 from study.types import ParticipantInput, ScreenState, TrialInfo
-from tasks.guard import guard_command
+from tasks.guard import guard_uvw
 from tasks.skills import SkillSettings
 from tasks.stick import HumanStick, HumanStickSettings
 
@@ -48,6 +48,8 @@ __all__ = [
 ]
 
 DT = 0.05  # [s] the control tick the stick model assumes
+_ZERO = (0.0, 0.0, 0.0)  # no command (v_x, v_y, omega) [m/s, m/s, rad/s]
+_DRIFT_SIGMA = (0.01, 0.01, 0.03)  # [m/s, m/s, rad/s] a distracted hand's drift
 
 
 # ---------------------------------------------------------------------- the participant
@@ -102,6 +104,26 @@ def _nearby(components: Sequence[SemanticComponent]) -> _Nearby | None:
             tangents[k] = math.atan2(vecs[1, -1], vecs[0, -1])
     starts = np.cumsum([0] + [len(c.points) for c in near[:-1]])
     return near, np.vstack([c.points for c in near]), starts, tangents
+
+
+@njit(cache=True)
+def _nearest_run(points: np.ndarray, starts: np.ndarray, px: float, py: float) -> tuple[int, float]:
+    """Of the runs of ``points`` (n, 2) [m] starting at ``starts`` (k,), the one with the
+    point nearest (px, py) [m] and that point's squared distance [m^2]: numpy's
+    ``argmin`` of ``minimum.reduceat`` of ``dx * dx + dy * dy`` (the first on ties, NaN
+    propagating as there)."""
+    best, best_d2 = 0, math.inf
+    for r in range(starts.shape[0]):
+        stop = starts[r + 1] if r + 1 < starts.shape[0] else points.shape[0]
+        low = math.inf
+        for j in range(starts[r], stop):
+            dx, dy = points[j, 0] - px, points[j, 1] - py
+            d2 = dx * dx + dy * dy
+            if j == starts[r] or not (low <= d2 or math.isnan(low)):
+                low = d2
+        if r == 0 or low < best_d2 or (math.isnan(low) and not math.isnan(best_d2)):
+            best, best_d2 = r, low
+    return best, best_d2
 
 
 class SyntheticParticipant(ParticipantBase):
@@ -165,16 +187,16 @@ class SyntheticParticipant(ParticipantBase):
         self._answer_right = True
         self._answered: str | None = None
         self._d = 0.0
-        self._last_u = np.zeros(3)
-        self._drift = np.zeros(3)
+        self._last_u = _ZERO  # commands as (v_x, v_y, omega) [m/s, m/s, rad/s] floats
+        self._drift = _ZERO
         self._ticks = 0
         self._mismatch = 0.0
         self._mismatch_n = 0
-        self._prev_pose: np.ndarray | None = None
-        self._prev_u = np.zeros(3)
-        self._stuck_anchor: tuple[float, np.ndarray] | None = None
+        self._prev_pose: tuple[float, float, float] | None = None  # [m, m, rad]
+        self._prev_u = _ZERO
+        self._stuck_anchor: tuple[float, float, float] | None = None  # t [s], x, y [m]
         self._unstick_until = -math.inf
-        self._unstick_u = np.zeros(3)
+        self._unstick_u = _ZERO
         self._distracted = 0
         self._task = ("", "")
 
@@ -311,7 +333,7 @@ class SyntheticParticipant(ParticipantBase):
             self._answer_at = t + median * math.exp(0.25 * z)
             self._answer_right = bool(e >= err)
             self._d = p.question_disturbance * (0.5 + 0.5 * k) if driving else 0.0
-            self._drift = np.zeros(3)
+            self._drift = _ZERO
             self._distracted += 1
         if self._answered == text or t < self._answer_at:
             return None
@@ -347,15 +369,12 @@ class SyntheticParticipant(ParticipantBase):
         if near is None:
             return ("", "")
         comps, points, starts, tangents = near
-        off = points - np.array((px, py))
-        d2 = np.einsum("ij,ij->i", off, off)
-        per = np.minimum.reduceat(d2, starts)
-        i = int(np.argmin(per))
-        dist, comp = math.sqrt(float(per[i])), comps[i]
+        i, d2 = _nearest_run(points, starts, px, py)
+        dist, comp = math.sqrt(d2), comps[i]
         if comp.kind == "wall" and dist < 0.9 and math.isfinite(tangents[i]):
             # the direction of travel (map frame) from the last stick command
-            u = self._prev_u
-            heading = pose.yaw + (math.atan2(u[1], u[0]) if np.any(u[:2]) else 0.0)
+            u0, u1, _ = self._prev_u
+            heading = pose.yaw + (math.atan2(u1, u0) if u0 != 0 or u1 != 0 else 0.0)
             rel = abs(wrap_angle(heading - tangents[i]))
             if min(rel, math.pi - rel) < math.radians(30):
                 return ("wall_following", comp.id)
@@ -372,58 +391,78 @@ class SyntheticParticipant(ParticipantBase):
             return ParticipantInput(u=np.zeros(3), answer=answer)
         self._ticks += 1
         pose = obs.pose
-        pos = np.array([pose.x, pose.y])
-        # what the robot did with the last command (robot frame, per tick)
-        prev_u = self._prev_u
-        if self._prev_pose is not None and (prev_u[0] != 0 or prev_u[1] != 0):
-            moved = pos - self._prev_pose[:2]
-            c, s = math.cos(pose.yaw), math.sin(pose.yaw)
-            got = np.array([c * moved[0] + s * moved[1], -s * moved[0] + c * moved[1]]) / DT
-            want = self._prev_u[:2]
-            norm = fast_norm(want)
-            self._mismatch += float(min(1.0, fast_norm(got - want) / max(norm, 0.05)))
-            self._mismatch_n += 1
-        self._prev_pose = np.array([pose.x, pose.y, pose.yaw])
-        ideal = self._driver.act(obs, replace(screen, question=None)).u
-        ideal = np.asarray(ideal, dtype=float)
+        px, py = float(pose.x), float(pose.y)
+        if self._prev_pose is not None:
+            self._note_mismatch(px, py, pose.yaw)
+        self._prev_pose = (px, py, float(pose.yaw))
+        u0, u1, u2 = self._driver.command(obs, False)  # the ideal command, no question
         self._task = self._label(obs)
         if self._task[0] in ("doorway_crossing", "gap_crossing", "robot_docking"):
-            ideal = ideal * np.array([1.0 - 0.4 * self.params.caution] * 2 + [1.0])
-        ideal = guard_command(ideal, obs.points, self._guard)
-        ideal = self._unstick(t, pos, ideal)
+            slower = 1.0 - 0.4 * self.params.caution
+            u0, u1 = u0 * slower, u1 * slower
+        u0, u1, u2 = guard_uvw(u0, u1, u2, obs.points, self._guard)
+        u0, u1, u2 = self._unstick(t, px, py, (u0, u1, u2))
         if self._question is not None and self._answered != self._question and self._d > 0:
-            distracted = self._distracted_command()
-            ideal = (1.0 - self._d) * ideal + self._d * distracted
+            x0, x1, x2 = self._distracted_command()
+            d, e = self._d, 1.0 - self._d
+            u0, u1, u2 = e * u0 + d * x0, e * u1 + d * x1, e * u2 + d * x2
         else:
-            self._last_u = ideal
-        u = self._stick.filter(ideal)
-        self._prev_u = u
-        return ParticipantInput(u=u, answer=answer)
+            self._last_u = (u0, u1, u2)
+        self._prev_u = self._stick.filter_uvw(u0, u1, u2)
+        return ParticipantInput(u=np.array(self._prev_u), answer=answer)
 
-    def _distracted_command(self) -> np.ndarray:
+    def _note_mismatch(self, px: float, py: float, yaw: float) -> None:
+        """Count how far the robot's motion since the last tick (robot frame, per tick)
+        was from the last command, relative to it, when it asked for translation."""
+        w0, w1, _ = self._prev_u
+        if w0 == 0 and w1 == 0:
+            return
+        m0, m1 = px - self._prev_pose[0], py - self._prev_pose[1]
+        c, s = math.cos(yaw), math.sin(yaw)
+        g0, g1 = (c * m0 + s * m1) / DT - w0, (-s * m0 + c * m1) / DT - w1
+        norm = math.sqrt(w0 * w0 + w1 * w1)
+        self._mismatch += float(min(1.0, math.sqrt(g0 * g0 + g1 * g1) / max(norm, 0.05)))
+        self._mismatch_n += 1
+
+    def _distracted_command(self) -> tuple[float, float, float]:
         style = self.params.distraction
         if style == "release":
-            return np.zeros(3)
-        self._last_u = self._last_u * 0.97  # eased off over a few seconds
+            return _ZERO
+        a0, a1, a2 = self._last_u
+        self._last_u = (a0 * 0.97, a1 * 0.97, a2 * 0.97)  # eased off over a few seconds
         if style == "drift":
-            self._drift = 0.95 * self._drift + self._rng.normal(0.0, [0.01, 0.01, 0.03])
-            return self._last_u + self._drift
+            # rng.normal(0.0, sigma) as numpy computes it (loc + scale * a standard
+            # normal draw, the same draws) without its broadcasting overhead
+            z0, z1, z2 = self._rng.standard_normal(3).tolist()
+            s0, s1, s2 = _DRIFT_SIGMA
+            d0, d1, d2 = self._drift
+            self._drift = (
+                0.95 * d0 + (0.0 + s0 * z0),
+                0.95 * d1 + (0.0 + s1 * z1),
+                0.95 * d2 + (0.0 + s2 * z2),
+            )
+            a0, a1, a2 = self._last_u
+            d0, d1, d2 = self._drift
+            return (a0 + d0, a1 + d1, a2 + d2)
         return self._last_u
 
-    def _unstick(self, t: float, pos: np.ndarray, ideal: np.ndarray) -> np.ndarray:
+    def _unstick(
+        self, t: float, px: float, py: float, ideal: tuple[float, float, float]
+    ) -> tuple[float, float, float]:
         if t < self._unstick_until:
             return self._unstick_u
-        pushing = fast_norm(ideal[:2]) > 0.05 or abs(float(ideal[2])) > 0.1
+        u0, u1, u2 = ideal
+        pushing = math.sqrt(u0 * u0 + u1 * u1) > 0.05 or abs(u2) > 0.1
         if not pushing or self._stuck_anchor is None:
-            self._stuck_anchor = (t, pos)
+            self._stuck_anchor = (t, px, py)
             return ideal
-        t0, p0 = self._stuck_anchor
-        if fast_norm(pos - p0) > 0.05:
-            self._stuck_anchor = (t, pos)
+        t0, x0, y0 = self._stuck_anchor
+        if math.sqrt((px - x0) * (px - x0) + (py - y0) * (py - y0)) > 0.05:
+            self._stuck_anchor = (t, px, py)
             return ideal
         if t - t0 >= 2.0:
             turn = 1.0 if self._rng.random() < 0.5 else -1.0
-            self._unstick_u = np.array([-0.15, 0.1 * turn, 0.5 * turn])
+            self._unstick_u = (-0.15, 0.1 * turn, 0.5 * turn)
             self._unstick_until = t + 1.0 + 0.5 * self._rng.random()
             self._stuck_anchor = None
             return self._unstick_u
