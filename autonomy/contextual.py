@@ -360,6 +360,16 @@ def _runtime_for(settings: ContextualSettings) -> Runtime | None:
     return runtime
 
 
+def _ids(components: Any, chosen: np.ndarray) -> list[str]:
+    """The ids (str) of the ``chosen`` candidates (indices), read from the candidates'
+    ``ids()`` where they have it (no component built), else from each component."""
+    ids = getattr(components, "ids", None)
+    if ids is not None:
+        every = ids()
+        return [every[k] for k in chosen.tolist()]
+    return [str(components[int(k)].id) for k in chosen.tolist()]
+
+
 def _progress(v: np.ndarray, u: np.ndarray) -> float:
     """Speed [m/s] of the command ``v`` (3,) along the translational input of ``u`` (3,),
     which is not zero (the mode assists only above ``min_input``)."""
@@ -507,7 +517,7 @@ class ContextualTaskMode:
         v, beta = self._safe(v, u, beta, points, obs.velocity)
         end = time.perf_counter()
         best = mean.max(axis=1)
-        scores = {str(components[int(k)].id): float(best[n]) for n, k in enumerate(chosen)}
+        scores = dict(zip(_ids(components, chosen), best.tolist(), strict=True))
         return Assist(
             v=v,
             g=g,

@@ -174,6 +174,9 @@ class Candidates(Protocol):
         """Every component's target point ``s`` (n, 2) [m], in index order."""
         ...
 
+    # optional: ``ids()``, the components' ids in index order (str), read for the
+    # recognition scores without building the components (autonomy.contextual)
+
 
 @dataclass(frozen=True, slots=True, eq=False)
 class ComponentList:
@@ -190,6 +193,10 @@ class ComponentList:
 
     def target_points(self) -> np.ndarray:
         return self.targets
+
+    def ids(self) -> tuple[str, ...]:
+        """The items' ids in index order."""
+        return tuple(str(c.id) for c in self.items)
 
 
 def as_candidates(components: Candidates | Sequence[Component]) -> Candidates:

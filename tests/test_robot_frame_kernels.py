@@ -92,3 +92,19 @@ def test_a_component_built_field_by_field_equals_the_constructed_one(rng):
                     assert np.array_equal(g, w) and g.shape == w.shape
                 else:
                     assert g == w or (g != g and w != w)  # NaN widths
+
+
+def test_ids_without_building_components(rng):
+    """``ids()`` of the robot-frame components and of a plain candidate list are the ids of
+    the components, in index order, and reading them computes nothing."""
+    from autonomy.types import as_candidates
+
+    for name in available_scenarios():
+        packed = in_robot_frame(derive_components(load_scenario(name)), Pose2D(0.0, 0.0, 0.0))
+        lazy = RobotFrameComponents(packed, _pose(rng))
+        ids = lazy.ids()
+        assert not lazy.prepared
+        assert list(ids) == [str(c.id) for c in lazy.materialise()]
+        assert as_candidates(list(lazy.materialise())).ids() == ids
+        plain = RobotFrameComponents(tuple(lazy.materialise()), lazy.pose)
+        assert plain.ids() == ids

@@ -36,6 +36,7 @@ class _Layout:
     items: tuple[tuple[str, str, float, tuple[str, ...], slice | None, slice | None], ...]
     target_rows: np.ndarray  # (m,) rows whose nearest is each component's target point
     target_starts: np.ndarray  # (n,) start of each component's run in target_rows
+    ids: tuple[str, ...]  # (n,) the components' ids
 
 
 class _Packed(tuple):
@@ -85,6 +86,7 @@ def _pack(components: Sequence[SemanticComponent]) -> _Packed:
         items=tuple(items),
         target_rows=np.asarray(targets, dtype=np.intp),
         target_starts=np.asarray(starts, dtype=np.intp),
+        ids=tuple(str(item[0]) for item in items),
     )
     return _with_pack(_Packed(components), stacked, layout)
 
@@ -228,6 +230,12 @@ class RobotFrameComponents(Sequence[SemanticComponent]):
     def prepared(self) -> bool:
         """Whether the robot-frame coordinates were computed (the sequence was read)."""
         return self._out is not None or self._seen is not None
+
+    def ids(self) -> tuple[str, ...]:
+        """The components' ids in index order (nothing is transformed or built)."""
+        if isinstance(self._map, _Packed):
+            return self._map.layout.ids
+        return tuple(str(c.id) for c in self._map)
 
     def prepare(self) -> RobotFrameComponents:
         """Compute the robot-frame coordinates now rather than when first read (the
