@@ -14,6 +14,7 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from study.data.dbtools import check
+from study.data.rrd import recording_summary
 from study.data.storage import Base, Event, Participant, Sample, Study, Trial, open_database
 from study.jobs.synth import (
     format_summary,
@@ -228,7 +229,12 @@ def test_no_recordings_same_rows_and_db_diff(tmp_path, seed):
         "--workers", "1", "--db", str(without), "--no-recordings",
     )  # fmt: skip
     assert done.returncode == 0, done.stderr
-    assert list(with_rec.parent.rglob("*.rrd")) and not list(without.parent.rglob("*.rrd"))
+    recorded = list(with_rec.parent.rglob("*.rrd"))
+    assert recorded and not list(without.parent.rglob("*.rrd"))
+    # nobody looks at a synthetic participant's camera: no frames rendered or recorded
+    for path in recorded:
+        entities = recording_summary(path)["entities"]
+        assert not any(k.startswith("camera/") and v["rows"] for k, v in entities.items())
     engine = open_database(without, create=False)
     with Session(engine) as sess:
         assert set(sess.scalars(select(Trial.recording_path))) == {""}

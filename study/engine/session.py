@@ -388,7 +388,8 @@ def run_session(
     clock, camera_hz : optional
         Default for human participants a wall-clock pace, else free-running; camera
         frames per second in the recordings, default the protocol's
-        ``[recording] camera_hz``.
+        ``[recording] camera_hz`` for a participant with a screen (``shows_camera``),
+        none for one without (nobody looks: synthetic and headless scripted drivers).
     on_tick : callable, optional
         Passed to :func:`study.engine.trial.run_trial`.
     recordings : str or Path, optional
@@ -425,7 +426,7 @@ def run_session(
         progress=progress if progress is not None else (lambda line: None),
         control=control if control is not None else ExperimenterControl(),
         clock=clock if clock is not None else (WallClock() if human else FreeClock()),
-        camera_hz=camera_hz if camera_hz is not None else protocol.recording.camera_hz,
+        camera_hz=camera_hz if camera_hz is not None else _camera_hz(protocol, participant),
         on_tick=on_tick,
         recordings=Path(recordings).resolve() if recordings is not None else None,
         record=record,
@@ -434,6 +435,12 @@ def run_session(
         return _run_locked(
             protocol, code, db, participant, seed, resume, force, durable, slot, options
         )
+
+
+def _camera_hz(protocol: Protocol, participant: SessionParticipant) -> float:
+    """Camera frames per second in the recordings: what a participant with a screen saw,
+    at the protocol's rate; none for a participant without one (docs/decisions.md)."""
+    return protocol.recording.camera_hz if participant.shows_camera else 0.0
 
 
 @contextlib.contextmanager
