@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 from scipy.special import ndtr
 
+from autonomy._reactive_kernels import mark_scan
 from autonomy.arbitration import blend
 from autonomy.dwa import DWASettings, dwa
 from autonomy.modes import register, settings_from
@@ -207,24 +208,18 @@ def cell_states(scans: Any, grid: SectorGrid) -> np.ndarray:
     """
     free = np.zeros(len(grid.cells), dtype=bool)
     occupied = np.zeros(len(grid.cells), dtype=bool)
-    size = 2 * grid.half + 1
     for scan in scans:
         angles = np.asarray(scan.angles, dtype=float)
-        ranges = np.asarray(scan.ranges, dtype=float)
+        ranges = np.ascontiguousarray(scan.ranges, dtype=float)
         origin = np.asarray(scan.origin, dtype=float)
         if len(angles) < 2:
             continue
         seen, beam, far, cos, sin = _scan_geometry(grid, angles, origin)
-        free[seen] |= far < ranges[beam]
-        hit = ranges < scan.max_range
-        r = ranges[hit]
-        hx = origin[0] + r * cos[hit]
-        hy = origin[1] + r * sin[hit]
-        ix = np.rint(hx / grid.resolution).astype(int) + grid.half
-        iy = np.rint(hy / grid.resolution).astype(int) + grid.half
-        inside = (ix >= 0) & (ix < size) & (iy >= 0) & (iy < size)
-        cell = grid.lookup[ix[inside] * size + iy[inside]]
-        occupied[cell[cell >= 0]] = True
+        mark_scan(
+            free, occupied, seen, beam, far, ranges, cos, sin, float(origin[0]),
+            float(origin[1]), float(scan.max_range), float(grid.resolution), int(grid.half),
+            grid.lookup,
+        )  # fmt: skip
     return np.where(occupied, OCCUPIED, np.where(free, FREE, UNKNOWN))
 
 
