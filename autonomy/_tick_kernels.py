@@ -195,6 +195,19 @@ def recognise(K, alpha, n_basis, Ct, sf2, noise, mean, work) -> tuple[int, int, 
 
 
 @njit(cache=True)
+def lift_points(points):
+    """``np.column_stack((points, np.einsum("ij,ij->i", points, points)))`` of surface
+    points (p, 2) [m]: (p, 3), the squared norms ``x * x + y * y`` as einsum sums two
+    columns."""
+    p = points.shape[0]
+    out = np.empty((p, 3))
+    for i in range(p):
+        x, y = points[i, 0], points[i, 1]
+        out[i, 0], out[i, 1], out[i, 2] = x, y, x * x + y * y
+    return out
+
+
+@njit(cache=True)
 def _before(a: float, b: float) -> bool:
     """``a`` sorts before ``b`` in numpy's order (NaN last)."""
     return a < b or (math.isnan(b) and not math.isnan(a))

@@ -335,7 +335,7 @@ def rollout(
     gmr = runtime.gmrs[j]
     points, s0x, s0y = _target_geometry(component)
     if points is not None:  # |p - h|^2 - |h|^2 = (p, |p|^2) . (-2 h, 1): one product
-        lifted = np.column_stack((points, np.einsum("ij,ij->i", points, points)))
+        lifted = _tick_kernels.lift_points(np.ascontiguousarray(points))
     else:
         lifted = _NO_POINTS
     cap = settings.rollout_steps

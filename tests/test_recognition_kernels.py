@@ -3,8 +3,8 @@ bit for bit what numpy's BLAS calls gave (OpenBLAS, one thread, as `asa` and
 tests/conftest.py set it): the batched means ``alpha @ K`` (dgemv_n), the winner's
 ``C @ k`` (dgemv_t) and ``k @ (C @ k)`` (a strided ddot), the argmax over finite means;
 and the whole recogniser equals the numpy one (tests/contextual_reference.py) also with
-non-finite features. The blend in Python floats equals the numpy expression it replaced,
-signed zeros included."""
+non-finite features. The blend in Python floats, the rollout's lifted surface points and
+the DWA's thinned points equal the numpy they replaced (signed zeros included)."""
 
 from __future__ import annotations
 
@@ -18,6 +18,7 @@ import pytest
 from autonomy import _tick_kernels
 from autonomy.arbitration import blend
 from autonomy.contextual import ContextualTaskMode
+from autonomy.dwa import thin_points
 from autonomy.sogp_classifier import argmax_finite
 
 sys.path.insert(0, str(Path(__file__).parent))
@@ -123,3 +124,32 @@ def test_blend_in_floats_equals_numpy(rng):
         got, ref = blend(u, g, beta), _blend_numpy(u, g, beta)
         assert np.array_equal(got, ref, equal_nan=True)
         assert np.array_equal(np.signbit(got), np.signbit(ref))
+
+
+def test_lifted_surface_points_equal_numpys(rng):
+    for _ in range(2000):
+        p = rng.normal(size=(int(rng.integers(0, 60)), 2)) * np.exp(rng.normal() * 5)
+        ref = np.column_stack((p, np.einsum("ij,ij->i", p, p)))
+        assert np.array_equal(_tick_kernels.lift_points(p), ref)
+
+
+def _thin_numpy(points, cell):
+    """autonomy.dwa.thin_points before its kernel."""
+    if len(points) == 0:
+        return points
+    keys = np.floor(points / cell).astype(np.int64)
+    _, first = np.unique(keys[:, 0] * 1_000_003 + keys[:, 1], return_index=True)
+    return points[np.sort(first)]
+
+
+@pytest.mark.filterwarnings("ignore::RuntimeWarning")
+def test_thin_points_equal_numpys(rng):
+    for t in range(3000):
+        p = rng.normal(size=(int(rng.integers(0, 600)), 2)) * rng.uniform(0.01, 10)
+        if t % 3 == 0:
+            p = np.round(p, 1)  # many points per cell
+        if t % 50 == 0 and len(p):
+            p[0, int(rng.integers(2))] = rng.choice([1e300, np.inf, np.nan])  # numpy's path
+        cell = float(rng.choice([0.05, 0.1, 0.3]))
+        got, ref = thin_points(p, cell), _thin_numpy(p, cell)
+        assert got.shape == ref.shape and np.array_equal(got, ref, equal_nan=True)
