@@ -118,9 +118,10 @@ class Recogniser:
     variance only for the winning candidate and cluster. The clusters' basis vectors are
     stacked at load time (zero-padded to the largest basis, padded rows with ``alpha = 0``
     and zero rows and columns of ``C``, which add exact zeros), so one tick evaluates the
-    kernels of all clusters in one compiled loop (:func:`autonomy._tick_kernels.sogp_kernels`,
-    the numpy arithmetic it replaced kept for a single candidate) and the means in one
-    batched product.
+    kernels of all clusters in one compiled loop (:func:`autonomy._tick_kernels.sogp_kernels`)
+    and the means, the winner and its variance in another
+    (:func:`autonomy._tick_kernels.recognise`, BLAS's summation orders written out); the
+    numpy arithmetic they replaced is kept for a single candidate.
     """
 
     def __init__(self, sogp: dict[str, Any]) -> None:
