@@ -47,6 +47,167 @@ def sogp_kernels(Z, ls, xs_t, xs2, sf2, K) -> None:
 
 
 @njit(cache=True)
+def gemv_rows(K, x, out) -> None:
+    """numpy's ``x @ K`` for ``K`` (n, m) C-contiguous, m >= 2, ``x`` (n,): OpenBLAS's
+    ``dgemv_n`` (Haswell) on the column-major (m, n) view. Rows below ``m - m % 4``: per
+    four columns ``(K0 x0 + fma(K2, x2)) + (K1 x1 + fma(K3, x3))`` added to the row's
+    sum, then two columns ``K0 x0 + K1 x1`` and one ``K0 x0``; the last ``m % 4`` rows
+    a plain running sum over the columns (unrolled by four when ``m < 4``). The rows'
+    sums run side by side (they vectorise)."""
+    n, m = K.shape
+    m3 = m & 3
+    nb = m - m3
+    out[:] = 0.0
+    c = 0
+    while c + 4 <= n:
+        x0, x1, x2, x3 = x[c], x[c + 1], x[c + 2], x[c + 3]
+        for r in range(nb):
+            t4 = fma(K[c + 2, r], x2, K[c, r] * x0)
+            t5 = fma(K[c + 3, r], x3, K[c + 1, r] * x1)
+            out[r] = out[r] + (t4 + t5)
+        c += 4
+    if n & 2:
+        for r in range(nb):
+            out[r] = out[r] + (K[c, r] * x[c] + K[c + 1, r] * x[c + 1])
+        c += 2
+    if n & 1:
+        for r in range(nb):
+            out[r] = out[r] + K[c, r] * x[c]
+    for r in range(nb, m):
+        t = 0.0
+        c = 0
+        if nb == 0:  # the kernel's own loop for lda == m < 4
+            while c + 4 <= n:
+                t = t + (K[c, r] * x[c] + K[c + 1, r] * x[c + 1])
+                t = t + (K[c + 2, r] * x[c + 2] + K[c + 3, r] * x[c + 3])
+                c += 4
+        while c < n:
+            t = t + K[c, r] * x[c]
+            c += 1
+        out[r] = 0.0 + t
+
+
+@njit(cache=True)
+def gemv_dots(At, x, n, w, lanes) -> None:
+    """numpy's ``A[:n, :n] @ x[:n]`` into ``w`` (n,), ``A`` C-contiguous, given as its
+    transpose ``At``: OpenBLAS's ``dgemv_t`` (Haswell). The first ``nb = n - n % 4``
+    terms of each dot product: four interleaved fused chains summed ``(l0 + l2) + (l1 +
+    l3)`` (the outputs in fours); two plain chains of every other term, summed (a pair
+    of outputs left over); four plain chains summed ``(l0 + l2) + (l1 + l3)`` (a single
+    output left over). The last ``n % 4`` terms are added as the compiled C tail rounds
+    them. The chains of all outputs run side by side in ``lanes`` (4, >= n) (they
+    vectorise)."""
+    nb = n - (n & 3)
+    nq = 4 * (n >> 2)
+    pair = nq + 2 if n & 2 else nq  # outputs [nq, pair): two chains; [pair, n): four
+    l0, l1, l2, l3 = lanes[0], lanes[1], lanes[2], lanes[3]
+    l0[:n] = 0.0
+    l1[:n] = 0.0
+    l2[:n] = 0.0
+    l3[:n] = 0.0
+    for r in range(0, nb, 4):
+        x0, x1, x2, x3 = x[r], x[r + 1], x[r + 2], x[r + 3]
+        for c in range(nq):
+            l0[c] = fma(At[r, c], x0, l0[c])
+            l1[c] = fma(At[r + 1, c], x1, l1[c])
+            l2[c] = fma(At[r + 2, c], x2, l2[c])
+            l3[c] = fma(At[r + 3, c], x3, l3[c])
+        for c in range(nq, pair):
+            l0[c] = (l0[c] + At[r, c] * x0) + At[r + 2, c] * x2
+            l1[c] = (l1[c] + At[r + 1, c] * x1) + At[r + 3, c] * x3
+        for c in range(pair, n):
+            l0[c] = l0[c] + At[r, c] * x0
+            l1[c] = l1[c] + At[r + 1, c] * x1
+            l2[c] = l2[c] + At[r + 2, c] * x2
+            l3[c] = l3[c] + At[r + 3, c] * x3
+    for c in range(n):
+        if nb == 0:  # no kernel ran: the outputs stay BLAS's zeros
+            w[c] = 0.0
+        elif nq <= c < pair:
+            w[c] = 0.0 + (l0[c] + l1[c])
+        else:
+            w[c] = 0.0 + ((l0[c] + l2[c]) + (l1[c] + l3[c]))
+    r = nb
+    for c in range(n):
+        if n & 3 == 3:
+            w[c] = w[c] + fma(At[r + 2, c], x[r + 2], fma(At[r, c], x[r], At[r + 1, c] * x[r + 1]))
+        elif n & 3 == 2:
+            w[c] = w[c] + fma(At[r, c], x[r], At[r + 1, c] * x[r + 1])
+        elif n & 3 == 1:
+            w[c] = fma(At[r, c], x[r], w[c])
+
+
+@njit(cache=True)
+def dot_strided(x, y, n) -> float:
+    """numpy's ``x[:n] @ y[:n]`` when ``x`` is a non-contiguous view (OpenBLAS ``ddot``
+    with a stride): products in fours, ``t1 += p0 + p2``, ``t2 += p1 + p3``, the rest
+    added to ``t1``; ``t1 + t2``."""
+    t1, t2 = 0.0, 0.0
+    i = 0
+    while i + 4 <= n:
+        t1 = t1 + (y[i] * x[i] + y[i + 2] * x[i + 2])
+        t2 = t2 + (y[i + 1] * x[i + 1] + y[i + 3] * x[i + 3])
+        i += 4
+    while i < n:
+        t1 = t1 + y[i] * x[i]
+        i += 1
+    return 0.0 + (t1 + t2)
+
+
+@njit(cache=True)
+def argmax_finite(scores) -> tuple[int, int]:
+    """autonomy.sogp_classifier.argmax_finite of a (m, c) float64 array: the row and
+    column of the first largest finite entry in row-major order; (-1, -1) if none."""
+    m, c = scores.shape
+    bi, bj, best = -1, -1, 0.0
+    for i in range(m):
+        for j in range(c):
+            v = scores[i, j]
+            if math.isfinite(v) and (bi < 0 or v > best):
+                bi, bj, best = i, j, v
+    return bi, bj
+
+
+@njit(cache=True)
+def recognise(K, alpha, n_basis, Ct, sf2, noise, mean, work) -> tuple[int, int, float]:
+    """Eqs. (5.6), (5.8) and (5.9) of autonomy.contextual.Recogniser for m >= 2
+    candidates, as numpy computed them: the posterior means ``mean[j] = alpha[j] @ K[j]``
+    (``K`` (c, b, m), ``alpha`` (c, b), ``mean`` (c, m) out, :func:`gemv_rows`), the
+    winner (:func:`argmax_finite` of ``mean.T``) and its predictive variance
+    ``max(sf2 + k @ (C_j @ k), 0) + noise`` (``k = K[j, :n_j, i]``, ``Ct`` (c, b, b)
+    the ``C_j`` transposed, zero-padded; :func:`gemv_dots`, :func:`dot_strided`;
+    ``work`` (6, b)). Returns
+    (candidate, cluster row, variance); (-1, -1, 0) when no mean is finite."""
+    for j in range(K.shape[0]):
+        gemv_rows(K[j], alpha[j], mean[j])
+    bi, bj = argmax_finite(mean.T)
+    if bi < 0:
+        return -1, -1, 0.0
+    n = n_basis[bj]
+    k, w = work[0], work[1]
+    for r in range(n):
+        k[r] = K[bj, r, bi]
+    gemv_dots(Ct[bj], k, n, w, work[2:])
+    var = sf2[bj] + dot_strided(k, w, n)
+    if 0.0 > var:
+        var = 0.0
+    return bi, bj, var + noise[bj]
+
+
+@njit(cache=True)
+def lift_points(points):
+    """``np.column_stack((points, np.einsum("ij,ij->i", points, points)))`` of surface
+    points (p, 2) [m]: (p, 3), the squared norms ``x * x + y * y`` as einsum sums two
+    columns."""
+    p = points.shape[0]
+    out = np.empty((p, 3))
+    for i in range(p):
+        x, y = points[i, 0], points[i, 1]
+        out[i, 0], out[i, 1], out[i, 2] = x, y, x * x + y * y
+    return out
+
+
+@njit(cache=True)
 def _before(a: float, b: float) -> bool:
     """``a`` sorts before ``b`` in numpy's order (NaN last)."""
     return a < b or (math.isnan(b) and not math.isnan(a))

@@ -118,9 +118,10 @@ class Recogniser:
     variance only for the winning candidate and cluster. The clusters' basis vectors are
     stacked at load time (zero-padded to the largest basis, padded rows with ``alpha = 0``
     and zero rows and columns of ``C``, which add exact zeros), so one tick evaluates the
-    kernels of all clusters in one compiled loop (:func:`autonomy._tick_kernels.sogp_kernels`,
-    the numpy arithmetic it replaced kept for a single candidate) and the means in one
-    batched product.
+    kernels of all clusters in one compiled loop (:func:`autonomy._tick_kernels.sogp_kernels`)
+    and the means, the winner and its variance in another
+    (:func:`autonomy._tick_kernels.recognise`, BLAS's summation orders written out); the
+    numpy arithmetic they replaced is kept for a single candidate.
     """
 
     def __init__(self, sogp: dict[str, Any]) -> None:
@@ -149,11 +150,17 @@ class Recogniser:
             self.n_basis_.append(n)
             self.sf2_[j] = float(gp["signal_var"])
             self.noise_[j] = float(gp["noise_var"])
-        # the same as contiguous (c, d), (c, d, b), (c, b), (c,) arrays for the kernel
+        # the same as contiguous (c, d), (c, d, b), (c, b), (c,) arrays for the kernels
         self.ls2_ = np.ascontiguousarray(self.ls_[:, 0, :])
         self.xs_t_ = np.ascontiguousarray(self.xs_.transpose(0, 2, 1))  # (c, d, b)
         self.xs2v_ = np.ascontiguousarray(self.xs2_[:, :, 0])
         self.sf2v_ = np.ascontiguousarray(self.sf2_[:, 0, 0])
+        self.alphav_ = np.ascontiguousarray(self.alpha_[:, 0, :])  # (c, b)
+        self.n_basisv_ = np.array(self.n_basis_, dtype=np.int64)  # (c,)
+        self.Ct_ = np.zeros((c, b, b))  # (c, b, b) the C_ transposed, zero-padded
+        for j, cj in enumerate(self.C_):
+            self.Ct_[j, : len(cj), : len(cj)] = cj.T
+        self.work_ = np.empty((6, b))  # the winner's kernel column, C k, 4 lanes
 
     def __call__(self, Z: np.ndarray) -> tuple[int, int, float, np.ndarray]:
         """Recognise over the rows of ``Z`` (m, d), standardised encoded features.
@@ -171,6 +178,8 @@ class Recogniser:
             (m, c) posterior means (5.6).
         """
         Z = np.ascontiguousarray(np.atleast_2d(np.asarray(Z, dtype=float)))
+        if len(Z) > 1:
+            return self._many(Z)
         if len(Z) == 1:  # BLAS computes xs @ a.T as a gemv here, in another order
             a = Z / self.ls_  # (c, 1, d)
             sq = self.xs2_ + (a * a).sum(axis=2)[:, None, :]
@@ -180,8 +189,7 @@ class Recogniser:
             K = np.exp(sq, out=sq)
             K *= self.sf2_  # Eq. (5.7)
         else:
-            K = np.empty((len(self.n_basis_), self.xs_.shape[1], Z.shape[0]))
-            _tick_kernels.sogp_kernels(Z, self.ls2_, self.xs_t_, self.xs2v_, self.sf2v_, K)
+            K = np.empty((len(self.n_basis_), self.xs_.shape[1], 0))
         mean = (self.alpha_ @ K)[:, 0, :].T  # (m, c), Eq. (5.6)
         i, j = argmax_finite(mean)  # Eq. (5.8), never a non-finite score
         if i < 0:
@@ -193,6 +201,24 @@ class Recogniser:
         if not math.isfinite(beta):
             beta = 0.0
         return i, int(self.classes_[j]), beta, mean
+
+    def _many(self, Z: np.ndarray) -> tuple[int, int, float, np.ndarray]:
+        """:meth:`__call__` for ``Z`` (m, d) C-contiguous float64, m >= 2: the kernels
+        (:func:`autonomy._tick_kernels.sogp_kernels`, :func:`autonomy._tick_kernels.recognise`)
+        repeat the numpy arithmetic, BLAS's products included; ndtr is scipy's."""
+        c, b = self.alphav_.shape
+        K = np.empty((c, b, len(Z)))
+        _tick_kernels.sogp_kernels(Z, self.ls2_, self.xs_t_, self.xs2v_, self.sf2v_, K)
+        mean = np.empty((c, len(Z)))
+        i, j, var = _tick_kernels.recognise(
+            K, self.alphav_, self.n_basisv_, self.Ct_, self.sf2v_, self.noise_, mean, self.work_
+        )
+        if i < 0:
+            return -1, -1, 0.0, mean.T
+        beta = float(ndtr(mean[j, i] / math.sqrt(var)))  # Eq. (5.10)
+        if not math.isfinite(beta):
+            beta = 0.0
+        return i, int(self.classes_[j]), beta, mean.T
 
 
 # --------------------------------------------------------------------------- rollout
@@ -310,7 +336,7 @@ def rollout(
     gmr = runtime.gmrs[j]
     points, s0x, s0y = _target_geometry(component)
     if points is not None:  # |p - h|^2 - |h|^2 = (p, |p|^2) . (-2 h, 1): one product
-        lifted = np.column_stack((points, np.einsum("ij,ij->i", points, points)))
+        lifted = _tick_kernels.lift_points(np.ascontiguousarray(points))
     else:
         lifted = _NO_POINTS
     cap = settings.rollout_steps
@@ -401,6 +427,8 @@ class ContextualTaskMode:
 
     def reset(self, robot: RobotModel) -> None:
         self.robot_ = robot
+        # (3,) the limits that normalise a command (max speed twice, max yaw rate)
+        self.limit_ = np.array([robot.max_speed, robot.max_speed, robot.max_yaw_rate])
 
     def settings_dict(self) -> dict[str, Any]:
         """The effective :class:`ContextualSettings`, tracking's nested."""
@@ -478,9 +506,9 @@ class ContextualTaskMode:
         u = np.array(u, dtype=float).reshape(3)
         points = np.asarray(obs.points, dtype=float).reshape(-1, 2)
         components = obs.components
-        limit = np.array([robot.max_speed, robot.max_speed, robot.max_yaw_rate])
-        u_norm = u / limit
-        if rt is None or not len(components) or math.hypot(u_norm[0], u_norm[1]) < s.min_input:
+        u_norm = u / self.limit_
+        nx, ny, _ = u_norm.tolist()
+        if rt is None or not len(components) or math.hypot(nx, ny) < s.min_input:
             return self._manual(u, points, start, time.perf_counter())
 
         # 1. candidates: the nearest components by target point

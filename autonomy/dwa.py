@@ -18,6 +18,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from autonomy._geometry_kernels import first_admissible, horizon_clearances
 from autonomy.safety import (
@@ -124,12 +125,45 @@ def window_samples(
 def thin_points(points: np.ndarray, cell: float) -> np.ndarray:
     """One point per ``cell`` x ``cell`` [m] grid square (the first in scan order):
     (m, 2) -> (m', 2), m' <= m. Every dropped point lies within ``cell * sqrt(2)`` of a
-    kept one."""
+    kept one. Compiled (:func:`_first_in_cell`); the numpy below for coordinates whose
+    cell index an int64 does not hold."""
     if len(points) == 0:
         return points
+    if points.dtype == np.float64 and points.ndim == 2 and points.shape[1] == 2:
+        keep = _first_in_cell(np.ascontiguousarray(points), float(cell))
+        if keep is not None:
+            return points[keep]
     keys = np.floor(points / cell).astype(np.int64)
     _, first = np.unique(keys[:, 0] * 1_000_003 + keys[:, 1], return_index=True)
     return points[np.sort(first)]
+
+
+@njit(cache=True)
+def _first_in_cell(points: np.ndarray, cell: float) -> np.ndarray | None:
+    """The mask (m,) of :func:`thin_points`' kept points: per cell key
+    ``floor(x / cell) * 1_000_003 + floor(y / cell)`` (int64, wrapping as numpy's), its
+    first point; None when a cell index is not finite or beyond 2**62."""
+    m = points.shape[0]
+    keys = np.empty(m, dtype=np.int64)
+    for i in range(m):
+        fx, fy = math.floor(points[i, 0] / cell), math.floor(points[i, 1] / cell)
+        if not (abs(fx) < 2.0**62 and abs(fy) < 2.0**62):
+            return None
+        keys[i] = np.int64(fx) * np.int64(1_000_003) + np.int64(fy)
+    size = 16
+    while size < 2 * m:
+        size *= 2
+    table = np.empty(size, dtype=np.int64)  # open addressing: the keys seen so far
+    used = np.zeros(size, dtype=np.bool_)
+    keep = np.zeros(m, dtype=np.bool_)
+    for i in range(m):
+        h = np.uint64(keys[i]) * np.uint64(0x9E3779B97F4A7C15)
+        slot = np.int64(h >> np.uint64(40)) & (size - 1)
+        while used[slot] and table[slot] != keys[i]:
+            slot = (slot + 1) & (size - 1)
+        if not used[slot]:  # the key's first point
+            used[slot], table[slot], keep[i] = True, keys[i], True
+    return keep
 
 
 def _scores(

@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 from scipy.special import ndtr
 
+from autonomy import _tick_kernels
 from autonomy.gp_hyperparameters import fit_hyperparameters
 from autonomy.sogp import MAX_LENGTH_SCALE, SparseOnlineGP
 
@@ -357,8 +358,12 @@ def recognise(classifier: SOGPClassifier, Q: np.ndarray) -> tuple[int, int, floa
 
 
 def argmax_finite(scores: np.ndarray) -> tuple[int, int]:
-    """Row and column of the largest finite entry of ``scores`` (m, c); (-1, -1) if none."""
+    """Row and column of the largest finite entry of ``scores`` (m, c); (-1, -1) if none
+    (the first in row-major order on ties; compiled for 2-D arrays, issue 25)."""
     scores = np.asarray(scores, dtype=float)
+    if scores.ndim == 2:
+        i, j = _tick_kernels.argmax_finite(np.ascontiguousarray(scores))
+        return int(i), int(j)
     finite = np.isfinite(scores)
     if not finite.any():
         return -1, -1
