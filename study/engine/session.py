@@ -491,7 +491,7 @@ def _run_locked(
             participant,
             _checked(opened, protocol, db),
             opened.session_id,
-            **dataclasses.asdict(options),
+            **{f.name: getattr(options, f.name) for f in dataclasses.fields(options)},
         )
         return _run(runner, code, opened)
     finally:
