@@ -58,11 +58,12 @@ def diff_command(a: str, b: str, tolerance: float, as_json: bool) -> None:
     row by row: is a rerun, or the same study on another platform version, the same
     data? Columns that record when or where rather than what (creation, start and end
     times, the tick jitter of human sessions, recording file names, the platform
-    version) are not compared.
+    version, the model file's path) are not compared.
 
     Exit status 0 when identical, 1 with the first differences of each table, 2 on bad
     input.
 
+    \b
     Example:
       asa db diff before.db after.db
     """
