@@ -100,16 +100,25 @@ def clearance_kernel(
     """:func:`autonomy.safety.footprint_clearance` (p,) [m] of poses (p, 3) to the points
     ``(px, py)`` (m,) float32, the footprint's lines ``normals`` (l, 2), ``mid`` (l,),
     ``half`` (l,) [m] (NaN: a one-sided line); at least one point."""
-    n_lines = normals.shape[0]
-    ax = np.empty(n_lines, dtype=_F32)
-    ay = np.empty(n_lines, dtype=_F32)
-    b = np.empty(n_lines, dtype=_F32)
-    half32, two_sided = _half_lines(half)
+    ax, ay, b, half32, two_sided = _line_work(normals.shape[0], half)
     out = np.empty(poses.shape[0])
     for i in range(poses.shape[0]):
         _lines_at(poses[i, 0], poses[i, 1], poses[i, 2], normals, mid, ax, ay, b)
         out[i] = _clearance_f32(ax, ay, b, half32, two_sided, px, py)
     return out
+
+
+@njit(cache=True)
+def _line_work(
+    n_lines: int, half: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Work arrays of :func:`_lines_at` (float32 ``ax``, ``ay``, ``b``, (l,)) and the
+    lines' float32 half widths and sidedness (:func:`_half_lines`)."""
+    ax = np.empty(n_lines, dtype=_F32)
+    ay = np.empty(n_lines, dtype=_F32)
+    b = np.empty(n_lines, dtype=_F32)
+    half32, two_sided = _half_lines(half)
+    return ax, ay, b, half32, two_sided
 
 
 @njit(cache=True)
@@ -142,11 +151,7 @@ def first_unsafe_step(
     (``autonomy.safety.interval_clearance``; ``h_0 = c0``) falls below ``required`` [m];
     -1 when none of the ``n_steps`` does. The arc's poses are checked in order and the
     loop stops at the first failure (:func:`autonomy.safety.safe_command`)."""
-    n_lines = normals.shape[0]
-    ax = np.empty(n_lines, dtype=_F32)
-    ay = np.empty(n_lines, dtype=_F32)
-    b = np.empty(n_lines, dtype=_F32)
-    half32, two_sided = _half_lines(half)
+    ax, ay, b, half32, two_sided = _line_work(normals.shape[0], half)
     pose = np.empty(3)
     prev = c0
     for j in range(n_steps):
@@ -192,11 +197,7 @@ def horizon_clearances(
     poses at ``times`` (k,) [s], or a negative one of them: the row minimum of
     ``footprint_clearance(arc_poses(samples, times))`` wherever that is >= 0, and some
     value < 0 wherever it is negative (what ``clip(., 0, cap)`` needs, :mod:`autonomy.dwa`)."""
-    n_lines = normals.shape[0]
-    ax = np.empty(n_lines, dtype=_F32)
-    ay = np.empty(n_lines, dtype=_F32)
-    b = np.empty(n_lines, dtype=_F32)
-    half32, two_sided = _half_lines(half)
+    ax, ay, b, half32, two_sided = _line_work(normals.shape[0], half)
     pose = np.empty(3)
     out = np.empty(samples.shape[0])
     for i in range(samples.shape[0]):
@@ -226,11 +227,7 @@ def first_admissible(
     interval_clearance`` with ``rate`` (n,) [m/s], ``h_0 = c0``): its position in
     ``order`` and its smallest interval clearance [m]; ``(-1, -inf)`` when none is. Each
     twist's check stops at its first failing interval (:func:`autonomy.dwa.dwa`)."""
-    n_lines = normals.shape[0]
-    ax = np.empty(n_lines, dtype=_F32)
-    ay = np.empty(n_lines, dtype=_F32)
-    b = np.empty(n_lines, dtype=_F32)
-    half32, two_sided = _half_lines(half)
+    ax, ay, b, half32, two_sided = _line_work(normals.shape[0], half)
     pose = np.empty(3)
     for pos in range(order.shape[0]):
         i = order[pos]
@@ -297,11 +294,7 @@ def safe_arc_check(
         return -2, 0.0
     if not np.isfinite(x_steps):
         return -3, 0.0
-    n_lines = normals.shape[0]
-    ax = np.empty(n_lines, dtype=_F32)
-    ay = np.empty(n_lines, dtype=_F32)
-    b = np.empty(n_lines, dtype=_F32)
-    half32, two_sided = _half_lines(half)
+    ax, ay, b, half32, two_sided = _line_work(normals.shape[0], half)
     _lines_at(0.0, 0.0, 0.0, normals, mid, ax, ay, b)
     c0 = float(_clearance_f32(ax, ay, b, half32, two_sided, px, py))
     lowered = c0 - tolerance_m

@@ -471,8 +471,6 @@ class NoRecording:
     """Stands in for :class:`TrialRecorder` when a trial is not recorded (``asa synth
     --no-recordings``): every call does nothing and no camera frame is ever due."""
 
-    path = None
-
     def tick(self, *args: Any, **kwargs: Any) -> None:
         """Nothing to record."""
 
