@@ -85,6 +85,7 @@ def analyse(
     posthoc: str = "lsd_paired",
     order: str | None = None,
     mixed: bool = True,
+    decisions_only: bool = False,
 ) -> dict:
     """The whole analysis of one metric: the thesis's chain and issue 21's additions.
 
@@ -111,6 +112,13 @@ def analyse(
         checks and the position covariate of the mixed model.
     mixed : bool
         Fit the mixed model (statsmodels MixedLM; about a second per metric).
+    decisions_only : bool
+        Only what decides the planned tests, by the same code: descriptives, the ANOVA,
+        sphericity, the gate, the planned post-hoc family and (when planned) Friedman with
+        its Wilcoxon-Holm pairs; ``effect_sizes``, ``pairs``, ``assumptions``, ``mixed``,
+        ``order`` and ``apa`` are None, the unplanned families empty, ``friedman`` None
+        unless planned. For resampled studies (power analysis, issue 22): about five
+        times faster.
 
     Returns
     -------
@@ -133,7 +141,13 @@ def analyse(
     """
     _check_options(alpha, sphericity_alpha, gate, test, posthoc)
     data = repeated_measures(df, dv=dv, within=within, subject=subject)
-    result = _thesis_chain(data, within, alpha=alpha, gate=gate, sphericity_alpha=sphericity_alpha)
+    families = (posthoc,) if decisions_only else POSTHOC
+    result = _thesis_chain(
+        data, within, alpha=alpha, gate=gate, sphericity_alpha=sphericity_alpha,
+        families=families,
+    )  # fmt: skip
+    if decisions_only:
+        return _clean(_decisions(data, result, alpha=alpha, test=test, posthoc=posthoc))
     notes = result["warnings"]
     result.update(_additions(data, result, alpha=alpha, posthoc=posthoc, notes=notes))
     planned, reason = choose_test(data.y, requested=test)
@@ -160,10 +174,32 @@ def _check_options(
         raise ValueError(f"posthoc {posthoc!r} is not allowed; choose one of {', '.join(POSTHOC)}")
 
 
-def _thesis_chain(
-    data: RepeatedMeasures, within: str, *, alpha: float, gate: str, sphericity_alpha: float
+def _decisions(
+    data: RepeatedMeasures, result: dict, *, alpha: float, test: str, posthoc: str
 ) -> dict:
-    """Descriptives, ANOVA, sphericity, GG, gate and every post-hoc family (thesis 7.6.2)."""
+    """``result`` (the thesis chain) with the planned test, the rest of the keys None."""
+    planned, reason = choose_test(data.y, requested=test)
+    result["friedman"] = _friedman_block(data, alpha) if planned == "friedman" else None
+    result["planned"] = _planned(result, planned, test, reason, alpha)
+    result.update(
+        posthoc_planned=posthoc,
+        posthoc_warning=lsd_warning(posthoc, data.y.shape[1]),
+        effect_sizes=None, pairs=None, assumptions=None, mixed=None, order=None, apa=None,
+    )  # fmt: skip
+    return result
+
+
+def _thesis_chain(
+    data: RepeatedMeasures,
+    within: str,
+    *,
+    alpha: float,
+    gate: str,
+    sphericity_alpha: float,
+    families: tuple[str, ...] = POSTHOC,
+) -> dict:
+    """Descriptives, ANOVA, sphericity, GG, gate and the post-hoc ``families`` (thesis
+    7.6.2; the others empty)."""
     y = data.y
     anova = _anova(y)
     sphericity = _mauchly(y, alpha=sphericity_alpha)
@@ -173,7 +209,8 @@ def _thesis_chain(
     notes = [*data.warnings, *_degenerate_notes(anova.ss_error, sphericity, y.shape)]
     p = gate_p(anova_out, sphericity, gg_out, gate=gate)
     significant = p is not None and p < alpha
-    families = _posthoc(data, alpha, notes) if significant else dict.fromkeys(POSTHOC, [])
+    pairs = _posthoc(data, alpha, notes, families) if significant else {}
+    pairs = {name: pairs.get(name, []) for name in POSTHOC}
     return {
         "n_subjects": int(y.shape[0]),
         "levels": list(data.levels),
@@ -184,7 +221,7 @@ def _thesis_chain(
         "p_gate": p,
         "p_gate_source": gate_source(sphericity, gate=gate),
         "significant": bool(significant),
-        "posthoc": {"ran": bool(significant), **families},
+        "posthoc": {"ran": bool(significant), **pairs},
         "warnings": notes,
         "dropped_subjects": list(data.dropped_subjects),
     }
@@ -205,17 +242,23 @@ def _degenerate_notes(ss_error: float, sphericity: dict, shape: tuple[int, int])
     return []
 
 
-def _posthoc(data: RepeatedMeasures, alpha: float, notes: list[str]) -> dict[str, list[dict]]:
-    """Every post-hoc family as JSON-safe pair lists; a note when a paired SD is 0."""
-    families = {
-        "lsd_paired": _pairs(_lsd_paired(data.y, data.levels, alpha)),
-        "lsd_pooled": _pairs(_lsd_pooled(data.y, data.levels, alpha)),
-        "holm": _pairs(_adjusted(data.y, data.levels, alpha, "holm")),
-        "bonferroni": _pairs(_adjusted(data.y, data.levels, alpha, "bonferroni")),
-    }
-    if any(pair["t"] is None for pair in families["lsd_paired"]):
+_FAMILIES = {
+    "lsd_paired": lambda y, levels, alpha: _lsd_paired(y, levels, alpha),
+    "lsd_pooled": lambda y, levels, alpha: _lsd_pooled(y, levels, alpha),
+    "holm": lambda y, levels, alpha: _adjusted(y, levels, alpha, "holm"),
+    "bonferroni": lambda y, levels, alpha: _adjusted(y, levels, alpha, "bonferroni"),
+}
+
+
+def _posthoc(
+    data: RepeatedMeasures, alpha: float, notes: list[str], families: tuple[str, ...] = POSTHOC
+) -> dict[str, list[dict]]:
+    """The post-hoc ``families`` as JSON-safe pair lists; a note when a paired SD is 0."""
+    out = {name: _pairs(_FAMILIES[name](data.y, data.levels, alpha)) for name in families}
+    paired = out.get("lsd_paired", out.get("holm", out.get("bonferroni", [])))
+    if any(pair["t"] is None for pair in paired):
         notes.append("some paired differences have SD 0: their t and p are undefined")
-    return families
+    return out
 
 
 def _described(data: RepeatedMeasures, within: str) -> dict[str, dict]:
