@@ -5,6 +5,7 @@ built by ``study.jobs.power`` (it drives the simulator); this package only count
 
 from __future__ import annotations
 
+from analysis.power.report import PowerReportPaths, write_power_report
 from analysis.power.resample import (
     OMNIBUS,
     Batch,
@@ -34,6 +35,7 @@ __all__ = [
     "TARGET_POWER",
     "Batch",
     "PlannedTests",
+    "PowerReportPaths",
     "bank_effects",
     "check_size",
     "clopper_pearson",
@@ -47,4 +49,5 @@ __all__ = [
     "study_rng",
     "summary_lines",
     "tally",
+    "write_power_report",
 ]
