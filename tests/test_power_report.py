@@ -28,8 +28,8 @@ from analysis.power import (
     resample_batch,
     summary_lines,
     tally,
-    write_power_report,
 )
+from analysis.power.report import write_power_report
 
 MODES = ("manual", "reactive_bn", "contextual_task")
 ORDERS = list(itertools.permutations(MODES))  # full_permutation: a cycle of 6

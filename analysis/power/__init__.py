@@ -1,11 +1,12 @@
 """Simulation-based power analysis (issue 22): studies resampled from a bank of synthetic
 participants (:mod:`analysis.power.resample`), power curves with binomial CIs and the
-smallest sample size per planned test (:mod:`analysis.power.summary`). The bank itself is
-built by ``study.jobs.power`` (it drives the simulator); this package only counts."""
+smallest sample size per planned test (:mod:`analysis.power.summary`), and the report
+(:mod:`analysis.power.report`, imported on its own: the workers that resample need no
+matplotlib). The bank itself is built by ``study.jobs.power`` (it drives the simulator);
+this package only counts."""
 
 from __future__ import annotations
 
-from analysis.power.report import PowerReportPaths, write_power_report
 from analysis.power.resample import (
     OMNIBUS,
     Batch,
@@ -35,7 +36,6 @@ __all__ = [
     "TARGET_POWER",
     "Batch",
     "PlannedTests",
-    "PowerReportPaths",
     "bank_effects",
     "check_size",
     "clopper_pearson",
@@ -49,5 +49,4 @@ __all__ = [
     "study_rng",
     "summary_lines",
     "tally",
-    "write_power_report",
 ]

@@ -56,6 +56,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "study.cli.plan:plan_command",
         "Counterbalancing: each participant's mode order and a balance check.",
     ),
+    "power": (
+        "study.cli.power:power",
+        "How many participants each planned test needs: simulated on Dask.",
+    ),
     "stats": (
         "study.cli.stats:stats",
         "Repeated-measures ANOVA, sphericity and LSD for any long CSV.",
