@@ -68,7 +68,9 @@ def dask_engine(scheduler: str | None, workers: int) -> Iterator[Engine]:
     if scheduler is None:
         cluster = LocalCluster(
             n_workers=workers, threads_per_worker=1, processes=True,
-            dashboard_address=None, silence_logs=logging.ERROR,
+            # the scheduler's HTTP server on a free local port, not 8787: two analyses
+            # (or a lab's own cluster) on one machine do not collide
+            dashboard_address="127.0.0.1:0", silence_logs=logging.ERROR,
         )  # fmt: skip
         client = Client(cluster)
         description = f"LocalCluster, {workers} worker process{'es' if workers > 1 else ''}"
