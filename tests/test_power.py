@@ -158,10 +158,12 @@ def test_an_unreachable_scheduler_is_reported_within_seconds(tmp_path, protocol)
                 "--bank", "6", "--sizes", "4", "--scheduler", address)  # fmt: skip
     assert time.monotonic() - start < 30
     assert done.returncode == 2
-    assert done.stderr.strip().splitlines() == [
-        f"asa: error: --scheduler: cannot reach a Dask scheduler at {address} within 5 s "
-        "(OSError); start one with 'dask scheduler' (README, 'Power analysis on a cluster')"
-    ]
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1, done.stderr
+    assert lines[0].startswith(
+        f"asa: error: --scheduler: cannot reach a Dask scheduler at {address} within 5 s ("
+    )
+    assert lines[0].endswith("'dask scheduler' (README, 'Power analysis on a cluster')")
 
 
 def test_a_bank_on_a_separate_dask_scheduler_and_worker(tmp_path, protocol, seed):

@@ -171,7 +171,8 @@ def _build_bank(client, bank: BankFile, proto: Protocol, s: PowerSettings, say: 
     from distributed import as_completed
 
     start = time.perf_counter()
-    todo = [i for i in range(s.bank) if i not in bank.done()]
+    stored = bank.done()
+    todo = [i for i in range(s.bank) if i not in stored]
     total, done = s.bank, s.bank - len(todo)
     say("bank", done, total)
     futures = [
