@@ -4,6 +4,7 @@ recording and the ``asa`` command line.
 The jobs of the command line are plain functions first (DESIGN.md, "Interfaces"):
 ``study.run_session`` (one participant's session), ``study.run_synthetic_study`` (a whole
 study of synthetic participants), ``study.run_pilot`` (a pilot study and its report),
+``study.run_power`` (a simulation-based power analysis on Dask, with ``study.PowerSettings``),
 ``study.load_protocol``; they are imported on first use, so ``import study`` stays light.
 """
 
@@ -24,6 +25,8 @@ _LAZY = {
     "run_session": "study.engine.session",
     "run_synthetic_study": "study.jobs.synth",
     "run_pilot": "study.jobs.pilot",
+    "run_power": "study.jobs.power",
+    "PowerSettings": "study.jobs.power",
     "load_protocol": "study.engine.protocol",
 }
 

@@ -12,11 +12,13 @@ def test_the_documented_functions_are_reachable_from_the_packages():
     from analysis.report import build_report
     from study.engine.session import run_session
     from study.jobs.pilot import run_pilot
+    from study.jobs.power import PowerSettings, run_power
     from study.jobs.synth import run_synthetic_study
 
     assert study.run_session is run_session
     assert study.run_synthetic_study is run_synthetic_study
     assert study.run_pilot is run_pilot
+    assert study.run_power is run_power and study.PowerSettings is PowerSettings
     assert analysis.build_report is build_report
     assert callable(study.load_protocol) and callable(analysis.analyse)
 
