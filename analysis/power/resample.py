@@ -47,6 +47,22 @@ class PlannedTests:
     posthoc: str = "lsd_paired"
     tests: Mapping[str, str] = field(default_factory=dict)
 
+    def analyse(self, frame: pd.DataFrame, metric: str, **options) -> dict:
+        """:func:`analysis.stats.analyse` of a long frame of ``metric`` (columns
+        ``participant``, ``mode``, ``value``) as planned; ``options`` add to it
+        (``decisions_only``, ``mixed``)."""
+        return analyse(
+            frame,
+            dv="value",
+            within="mode",
+            subject="participant",
+            alpha=self.alpha,
+            gate=self.gate,
+            test=self.tests.get(metric, "rm_anova"),
+            posthoc=self.posthoc,
+            **options,
+        )
+
     def keys(self, metric: str) -> tuple[str, ...]:
         """The tests of ``metric``: :data:`OMNIBUS`, then ``"a vs b"`` per pair of levels."""
         levels = self.metrics[metric]
@@ -145,17 +161,7 @@ def analyse_study(
     """The decisions of one study's long frame of ``metric``; None when the analysis
     cannot run (too few complete participants): counted as no rejection."""
     try:
-        result = analyse(
-            frame,
-            dv="value",
-            within="mode",
-            subject="participant",
-            alpha=planned.alpha,
-            gate=planned.gate,
-            test=planned.tests.get(metric, "rm_anova"),
-            posthoc=planned.posthoc,
-            decisions_only=True,
-        )
+        result = planned.analyse(frame, metric, decisions_only=True)
     except ValueError:
         return None
     return decisions(result, planned, metric)

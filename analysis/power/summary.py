@@ -12,7 +12,6 @@ import pandas as pd
 from scipy import stats
 
 from analysis.power.resample import OMNIBUS, PlannedTests
-from analysis.stats import analyse
 
 TARGET_POWER = 0.8
 CI_LEVEL = 0.95
@@ -124,17 +123,7 @@ def bank_effects(outcomes: pd.DataFrame, planned: PlannedTests, metric: str) -> 
     (:func:`analysis.stats.analyse` on every bank participant); None when it cannot run."""
     frame = outcomes[outcomes["metric"] == metric]
     try:
-        result = analyse(
-            frame,
-            dv="value",
-            within="mode",
-            subject="participant",
-            alpha=planned.alpha,
-            gate=planned.gate,
-            test=planned.tests.get(metric, "rm_anova"),
-            posthoc=planned.posthoc,
-            mixed=False,
-        )
+        result = planned.analyse(frame, metric, mixed=False)
     except ValueError:
         return None
     return {
