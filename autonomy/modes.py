@@ -6,6 +6,12 @@ modules that register themselves are imported at the bottom of this file, one
 line each, so that importing :mod:`autonomy.modes` is enough to see every mode;
 a new mode adds its module to that line and nothing else here.
 
+Modes from other packages (issue 23; docs/modes.md): an installed package registers a
+factory under a name in the entry-point group :data:`ENTRY_POINT_GROUP`
+(``asa_study.modes``), or a protocol names one as ``"package.module:factory"``; both are
+loaded on first use by :func:`mode_factory`, and a broken one (it does not import, it is
+not callable, it builds no mode) is a ``ValueError`` naming it.
+
 Settings reach a mode as keyword arguments (from a protocol file, say);
 :func:`settings_from` turns them into the mode's frozen settings dataclass and
 refuses unknown names with a ``ValueError`` that lists the allowed ones.
@@ -14,7 +20,9 @@ refuses unknown names with a ``ValueError`` that lists the allowed ones.
 from __future__ import annotations
 
 import dataclasses
+import importlib
 from collections.abc import Callable
+from importlib.metadata import EntryPoint, entry_points
 from typing import Any, TypeVar
 
 from autonomy.types import Mode
@@ -25,6 +33,8 @@ S = TypeVar("S")
 
 # mode name -> factory(**settings) -> Mode
 MODES: dict[str, ModeFactory] = {}
+ENTRY_POINT_GROUP = "asa_study.modes"
+_LOADED: dict[str, ModeFactory] = {}  # modes from other packages, loaded once
 
 
 def register(name: str) -> Callable[[F], F]:
@@ -43,23 +53,103 @@ def register(name: str) -> Callable[[F], F]:
     return decorator
 
 
+def _plugins() -> dict[str, EntryPoint]:
+    """The entry points of :data:`ENTRY_POINT_GROUP` by name (the first of a name wins)."""
+    found: dict[str, EntryPoint] = {}
+    for ep in entry_points(group=ENTRY_POINT_GROUP):
+        found.setdefault(ep.name, ep)
+    return found
+
+
 def available_modes() -> list[str]:
-    """Names of the registered modes, sorted."""
-    return sorted(MODES)
+    """Names of the registered modes and of the installed packages' modes, sorted."""
+    return sorted(set(MODES) | set(_plugins()))
 
 
-def make_mode(name: str, **settings: Any) -> Mode:
-    """Build the mode registered as ``name`` with the given settings.
+def _import_reference(name: str) -> ModeFactory:
+    """The factory that ``"package.module:factory"`` names."""
+    module_name, _, attribute = name.partition(":")
+    try:
+        obj: Any = importlib.import_module(module_name)
+        for part in attribute.split("."):
+            obj = getattr(obj, part)
+    except Exception as error:  # a third party's module: any failure is its, not ours
+        raise ValueError(
+            f"mode {name!r}: cannot load {attribute!r} from module {module_name!r} "
+            f"({type(error).__name__}: {' '.join(str(error).split())})"
+        ) from None
+    return obj
+
+
+def _load_entry_point(name: str, ep: EntryPoint) -> ModeFactory:
+    try:
+        return ep.load()
+    except Exception as error:  # a third party's module: any failure is its, not ours
+        where = f" (package {ep.dist.name})" if ep.dist is not None else ""
+        raise ValueError(
+            f"mode {name!r}: entry point {ep.name} = {ep.value!r} of group "
+            f"{ENTRY_POINT_GROUP}{where} cannot be loaded "
+            f"({type(error).__name__}: {' '.join(str(error).split())})"
+        ) from None
+
+
+def mode_factory(name: str) -> ModeFactory:
+    """The factory of mode ``name``: registered here, an entry point of
+    :data:`ENTRY_POINT_GROUP`, or ``"package.module:factory"``.
 
     Raises
     ------
     ValueError
-        For an unknown name (listing the registered ones) or unknown settings.
+        An unknown name (listing the known ones), or a mode from another package that
+        cannot be loaded or is not callable (naming it and why).
     """
-    factory = MODES.get(name)
-    if factory is None:
-        raise ValueError(f"unknown mode {name!r}; registered modes: {', '.join(available_modes())}")
-    return with_defaults(factory(**settings))
+    factory = MODES.get(name) or _LOADED.get(name)
+    if factory is not None:
+        return factory
+    if ":" in name:
+        factory = _import_reference(name)
+    else:
+        ep = _plugins().get(name)
+        if ep is None:
+            raise ValueError(
+                f"unknown mode {name!r}; registered modes: {', '.join(available_modes())} "
+                f"(or 'package.module:factory', docs/modes.md)"
+            )
+        factory = _load_entry_point(name, ep)
+    if not callable(factory):
+        raise ValueError(f"mode {name!r}: {factory!r} is not callable (a mode factory is)")
+    _LOADED[name] = factory
+    return factory
+
+
+def make_mode(name: str, **settings: Any) -> Mode:
+    """Build the mode ``name`` (:func:`mode_factory`) with the given settings.
+
+    Raises
+    ------
+    ValueError
+        For an unknown name (listing the registered ones), unknown settings, or a mode
+        from another package that fails to build or lacks ``reset`` and ``step``.
+    """
+    factory = mode_factory(name)
+    if name in MODES:
+        return with_defaults(factory(**settings))
+    try:
+        mode = factory(**settings)
+    except ValueError:
+        raise
+    except Exception as error:  # a third party's factory: any failure is its, not ours
+        raise ValueError(
+            f"mode {name!r}: its factory failed ({type(error).__name__}: "
+            f"{' '.join(str(error).split())})"
+        ) from None
+    missing = [m for m in ("reset", "step") if not callable(getattr(mode, m, None))]
+    if missing:
+        raise ValueError(
+            f"mode {name!r}: its factory returned a {type(mode).__name__}, which has no "
+            f"{' and no '.join(f'{m}()' for m in missing)} (the mode interface: docs/modes.md)"
+        )
+    return with_defaults(mode)
 
 
 def with_defaults(mode: Any) -> Mode:

@@ -28,7 +28,7 @@ from collections.abc import Collection, Mapping
 from pathlib import Path
 from typing import Any
 
-from autonomy.modes import available_modes, make_mode
+from autonomy.modes import MODES, make_mode, mode_factory
 from protocols import PROTOCOL_DIR, available
 from questionnaires import nasa_tlx
 from sim.check import check_scene
@@ -353,15 +353,20 @@ def _recording(r: FieldReader) -> RecordingSettings:
 
 
 def _modes(
-    r: FieldReader, known: Collection[str]
+    r: FieldReader, known: Collection[str] | None
 ) -> tuple[tuple[str, ...], str, bool, Mapping[str, Mapping[str, Any]]]:
     names = _string_list(r, "names", None)
     for i, name in enumerate(names):
-        if name not in known:
+        if known is not None and name not in known:
             raise r.fail(
                 f"names[{i}]",
                 f"unknown mode {name!r}; registered modes: {', '.join(sorted(known)) or 'none'}",
             )
+        if known is None:
+            try:
+                mode_factory(name)  # a mode from another package: loadable?
+            except ValueError as error:
+                raise r.fail(f"names[{i}]", str(error)) from None
     if len(names) < 2:
         raise r.fail("names", f"a comparison needs at least two modes, got {list(names)}")
     scheme = r.string("counterbalancing", "full_permutation", allowed=SCHEMES)
@@ -384,6 +389,12 @@ def _modes(
         settings[name] = dict(values)
     sr.finish()
     r.finish()
+    for i, name in enumerate(names):  # a mode from another package: does it build?
+        if name not in MODES and name not in settings and known is None:
+            try:
+                make_mode(name)
+            except (ValueError, TypeError) as error:
+                raise r.fail(f"names[{i}]", str(error)) from None
     return names, scheme, hidden, settings
 
 
@@ -425,8 +436,8 @@ def parse_protocol(
     source : str
         Names the file in error messages.
     known_modes : collection of str, optional
-        The mode names accepted; default the registry,
-        :func:`autonomy.modes.available_modes`.
+        The mode names accepted; default any mode :func:`autonomy.modes.mode_factory`
+        loads (the registry, installed packages' entry points, ``"package.module:factory"``).
     base : Path, optional
         Folder against which relative scenario files (``*.toml``) are resolved; default
         the folder of ``source`` when it names a file, else the working directory.
@@ -437,7 +448,7 @@ def parse_protocol(
         Malformed TOML or any bad field, naming ``source`` and the field.
     """
     data = loads_toml(text, source)
-    known = available_modes() if known_modes is None else known_modes
+    known = known_modes  # None: the registry, installed packages and module references
     if base is None:
         base = Path(source).parent if Path(source).is_file() else Path.cwd()
     r = FieldReader(source, data)
