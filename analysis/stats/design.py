@@ -44,6 +44,8 @@ def _labels(column: pd.Series, name: str) -> pd.Series:
     if missing.any():
         row = column.index[np.flatnonzero(missing.to_numpy())[0]]
         raise ValueError(f"column {name!r}: row {row} is empty; every row needs a {name}")
+    if all(type(v) is str for v in column.to_numpy()):
+        return column.astype(object)  # labels already: none can read as another
     as_text = column.map(str)
     originals = pd.DataFrame({"text": as_text, "value": column.map(repr)}).drop_duplicates()
     clash = originals["text"].duplicated(keep=False)
@@ -124,6 +126,24 @@ def _repeated_cells_note(long: pd.DataFrame) -> list[str]:
     ]
 
 
+def _wide(
+    long: pd.DataFrame, subjects: tuple, levels: tuple[str, ...]
+) -> tuple[pd.DataFrame, list[str]]:
+    """The (subject, level) table of cell means, subjects and levels in first-appearance
+    order, and the note about cells of several rows (if any)."""
+    s_codes = pd.Index(subjects).get_indexer(long["subject"])
+    l_codes = pd.Index(levels).get_indexer(long["level"])
+    cells = s_codes * len(levels) + l_codes
+    if len(np.unique(cells)) == len(cells):  # one row per cell: no means to take
+        y = np.full(len(subjects) * len(levels), np.nan)
+        y[cells] = long["y"].to_numpy(dtype=float)
+        table = y.reshape(len(subjects), len(levels))
+        return pd.DataFrame(table, index=list(subjects), columns=list(levels)), []
+    cell_means = long.groupby(["subject", "level"], sort=False)["y"].mean()
+    wide = cell_means.unstack("level").reindex(index=list(subjects), columns=list(levels))
+    return wide, _repeated_cells_note(long)
+
+
 def _incomplete(wide: pd.DataFrame, levels: tuple[str, ...]) -> tuple[np.ndarray, tuple, list]:
     """(mask of incomplete subjects, their labels, the listwise-deletion warning if any)."""
     incomplete = wide.isna().any(axis=1)
@@ -180,9 +200,7 @@ def repeated_measures(df: pd.DataFrame, *, dv: str, within: str, subject: str) -
     )
     levels = _levels(long, within)
     subjects_all = tuple(pd.unique(long["subject"]))
-    notes = _repeated_cells_note(long)
-    cell_means = long.groupby(["subject", "level"], sort=False)["y"].mean()
-    wide = cell_means.unstack("level").reindex(index=list(subjects_all), columns=list(levels))
+    wide, notes = _wide(long, subjects_all, levels)
     incomplete, dropped, dropped_note = _incomplete(wide, levels)
     notes += dropped_note
     complete = wide.loc[~incomplete]
