@@ -80,3 +80,17 @@ def test_trial_group_reports_tick_times_per_mode(capsys) -> None:
 def test_report_group(capsys) -> None:
     figures = bench_json(capsys, "report")
     assert figures["report_s"] > 0 and figures["report_metrics"] >= 10
+
+
+@pytest.mark.slow
+def test_power_group_reports_bank_and_resampling_rates(capsys) -> None:
+    figures = bench_json(capsys, "power")
+    assert figures["power_bank_entries"] == 2 and figures["power_bank_protocol"]
+    for key in ("bank_trials_per_cpu_s", "bank_trial_cpu_factor", "power_studies_per_s"):
+        assert figures[key] > 0
+    assert figures["scaling_2_vs_1"] == pytest.approx(
+        figures["bank_entries_per_s_2"] / figures["bank_entries_per_s_1"], rel=0.01
+    )
+    budgets = figures["budgets"]
+    assert set(budgets) == {"bank_trial_cpu_factor", "scaling_2_vs_1", "power_thesis_estimate_s"}
+    assert budgets["power_thesis_estimate_s"]["met"] is None  # --quick drives no thesis bank
