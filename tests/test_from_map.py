@@ -219,3 +219,23 @@ def test_synthetic_study_on_the_example_map(tmp_path):
     )  # fmt: skip
     assert done.returncode == 0, done.stderr
     assert "manual" in done.stdout and "reactive_bn" in done.stdout
+
+
+def test_scenes_without_groups_derive_their_passages_as_before():
+    """The closest-parts rule of groups leaves ungrouped scenes alone: the thesis scene's
+    doorways, gaps and dock, as derived before groups existed (a gap beside one table leg
+    included)."""
+    from sim.scenario import load_scenario
+    from sim.semantics import derive_components
+
+    found = [
+        (c.id, [round(float(v), 4) for v in c.centre])
+        for c in derive_components(load_scenario("cluttered_room"))
+        if c.kind in ("doorway", "gap", "dock")
+    ]
+    assert found == [
+        ("doorway_0", [4.0, 2.375]), ("doorway_1", [4.0, 7.575]), ("doorway_2", [9.5, 1.275]),
+        ("gap_0", [1.245, 6.95]), ("gap_1", [1.7574, 8.3845]), ("gap_2", [3.0079, 4.7295]),
+        ("gap_3", [3.4352, 3.8506]), ("gap_4", [5.8, 3.825]), ("gap_5", [7.75, 2.05]),
+        ("gap_6", [12.5775, 7.5523]), ("gap_7", [13.9002, 6.9769]), ("dock_table", [1.0, 7.6]),
+    ]  # fmt: skip

@@ -128,8 +128,10 @@ def _traversable(
 
 
 def _obstacle(shape: _Shape) -> str:
-    """The obstacle a shape is part of: its group or table, else the shape itself."""
-    return shape.part_of or f"shape {shape.name}"
+    """The obstacle a shape is part of for the closest-parts rule: its group (a map's
+    blob), else the shape itself (a table's legs stay apart: an opening beside one leg is
+    as it was before groups existed)."""
+    return shape.part_of if shape.part_of.startswith("group ") else f"shape {shape.name}"
 
 
 def _close_pairs(
