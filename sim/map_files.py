@@ -2,9 +2,11 @@
 (thesis Sec. 7.6.1.1: the participant's 2D occupancy grid map).
 
 Occupied cells are written 0 (black), free cells 254 (white); reading back, a pixel
-is occupied when ``p > occupied_thresh`` and free when ``p < free_thresh`` with
-``p = (255 - value) / 255`` (``negate: 0``). Images may be binary or plain PGM (8 or
-16 bit) or 8-bit PNG; the map's ``origin`` yaw must be 0 (axis-aligned grids only).
+is free when ``p < free_thresh`` with ``p = (255 - value) / 255`` (``negate: 0``; ``value
+/ 255`` with ``negate: 1``), and occupied or unknown otherwise; ``mode: raw`` (Nav2)
+reads the pixel as the occupancy in percent, values above 100 unknown, and ignores
+``negate``. Images may be binary or plain PGM (8 or 16 bit) or 8-bit PNG; the map's
+``origin`` yaw must be 0 (axis-aligned grids only).
 """
 
 from __future__ import annotations
@@ -296,8 +298,8 @@ def load_ros_map(yaml_path: str | Path) -> OccupancyGrid:
             f"<= 1, got {free_thresh} and {occupied_thresh}"
         )
     mode = fields.get("mode", "trinary").strip("'\"")
-    if mode not in ("trinary", "scale"):
-        raise ValueError(f"{path}: field 'mode': must be trinary or scale, got {mode!r}")
+    if mode not in ("trinary", "scale", "raw"):
+        raise ValueError(f"{path}: field 'mode': must be trinary, scale or raw, got {mode!r}")
 
     if not image.is_file():
         raise ValueError(f"{path}: field 'image': no such file {image}")
@@ -306,6 +308,9 @@ def load_ros_map(yaml_path: str | Path) -> OccupancyGrid:
         pixels = _read_png(data) if data.startswith(b"\x89PNG") else _read_pgm(data)
     except ValueError as error:
         raise ValueError(f"{path}: field 'image': {image.name}: {error}") from None
-    p = pixels / 255.0 if negate else (255.0 - pixels) / 255.0
+    if mode == "raw":  # the pixel is the occupancy in percent, > 100 unknown (Nav2)
+        p = np.where(pixels <= 100.0, np.round(pixels) / 100.0, 1.0)
+    else:
+        p = pixels / 255.0 if negate else (255.0 - pixels) / 255.0
     free = p < free_thresh
     return OccupancyGrid(~free[::-1].copy(), (origin[0], origin[1]), resolution)

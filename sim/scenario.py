@@ -126,6 +126,7 @@ def _wall(r: FieldReader) -> Box:
         yaw=math.atan2(b[1] - a[1], b[0] - a[0]),
         height=r.number("height", 1.2, positive=True),
         colour=r.vector("colour", 3, [0.82, 0.82, 0.78], unit=True),
+        group=r.string("group", ""),
     )
     r.finish()
     return box
@@ -140,6 +141,7 @@ def _box(r: FieldReader) -> Box:
         yaw=math.radians(r.number("yaw_deg", 0.0)),
         height=r.number("height", 0.8, positive=True),
         colour=r.vector("colour", 3, [0.55, 0.42, 0.28], unit=True),
+        group=r.string("group", ""),
     )
     r.finish()
     return box

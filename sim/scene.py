@@ -21,6 +21,7 @@ class Box:
     yaw: float  # [rad]
     height: float  # [m]
     colour: tuple[float, float, float]  # RGB in [0, 1]
+    group: str = ""  # boxes of one group are parts of one obstacle (a map blob); "" alone
 
     def corners(self) -> np.ndarray:
         """Footprint corners in the map frame, counter-clockwise (4, 2) [m]."""

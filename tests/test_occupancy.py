@@ -392,7 +392,7 @@ BAD_YAML = [
     ("image: m.pgm\nresolution: 0.05\norigin: [0, 0, 0.5]\n", "origin"),
     ("image: m.pgm\nresolution: 0.05\norigin: [0, 0, 0]\nnegate: 2\n", "negate"),
     ("image: m.pgm\nresolution: 0.05\norigin: [0, 0, 0]\nfree_thresh: 0.9\n", "free_thresh"),
-    ("image: m.pgm\nresolution: 0.05\norigin: [0, 0, 0]\nmode: raw\n", "mode"),
+    ("image: m.pgm\nresolution: 0.05\norigin: [0, 0, 0]\nmode: blend\n", "mode"),
     ("image: m.pgm\nresolution: 0.05\norigin: [0, 0, 0]\nresolutoin: 1\n", "resolutoin"),
     ("resolution: 0.05\norigin: [0, 0, 0]\n", "image"),
     ("image: nowhere.pgm\nresolution: 0.05\norigin: [0, 0, 0]\n", "image"),

@@ -24,22 +24,25 @@ class _Shape:
 
     name: str
     is_wall: bool
-    table: str  # the table a leg belongs to, "" otherwise
+    part_of: str  # the obstacle it is one part of (a table's leg, a group's box), "" if none
     polygon: np.ndarray | None  # (4, 2) [m] or None for a circle
     centre: np.ndarray  # (2,) [m]
     radius: float  # [m] circle radius, or the polygon's circumradius
 
 
-def _box_shape(box: Box, table: str = "") -> _Shape:
+def _box_shape(box: Box, part_of: str = "") -> _Shape:
     corners = box.corners()
     centre = np.asarray(box.centre, dtype=float)
     radius = float(np.max(np.linalg.norm(corners - centre, axis=1)))
-    return _Shape(box.name, box.kind == "wall", table, corners, centre, radius)
+    return _Shape(box.name, box.kind == "wall", part_of, corners, centre, radius)
 
 
 def _shapes(scenario: Scenario) -> list[_Shape]:
-    shapes = [_box_shape(b) for b in (*scenario.walls, *scenario.boxes)]
-    shapes += [_box_shape(leg, t.name) for t in scenario.tables for leg in t.leg_boxes()]
+    shapes = [
+        _box_shape(b, f"group {b.group}" if b.group else "")
+        for b in (*scenario.walls, *scenario.boxes)
+    ]
+    shapes += [_box_shape(leg, f"table {t.name}") for t in scenario.tables for leg in t.leg_boxes()]
     shapes += [
         _Shape(c.name, False, "", None, np.asarray(c.centre, dtype=float), c.radius)
         for c in scenario.cylinders

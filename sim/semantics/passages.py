@@ -8,7 +8,8 @@ counterpart of the 95 % free-cells test, lines 21-29), it is an opening rather t
 the side of a corridor (:func:`_passage_depth`), for a gap the robot fits on both sides
 of it (:func:`_traversable`: a dead-end pocket beside furniture is no passage; a doorway
 in a wall stays one even when something blocks it), its centre lies within the bounds,
-and the two outlines are not two legs of one table (that opening is the dock).
+and the two outlines are not two legs of one table (that opening is the dock) nor two
+boxes of one group (parts of one obstacle, as a map's blob).
 Between two walls it is a doorway; with a free-standing obstacle on a side, a gap.
 Passages closer than ``MERGE_DISTANCE_M`` are merged, keeping the narrowest.
 """
@@ -126,36 +127,61 @@ def _traversable(
     )
 
 
+def _obstacle(shape: _Shape) -> str:
+    """The obstacle a shape is part of for the closest-parts rule: its group (a map's
+    blob), else the shape itself (a table's legs stay apart: an opening beside one leg is
+    as it was before groups existed)."""
+    return shape.part_of if shape.part_of.startswith("group ") else f"shape {shape.name}"
+
+
+def _close_pairs(
+    shapes: list[_Shape], hi: float
+) -> tuple[list[tuple[int, int, float, np.ndarray, np.ndarray]], dict[tuple[str, str], float]]:
+    """Pairs of shapes of different obstacles less than ``hi`` [m] apart, as ``(i, j,
+    width, p, q)``, and the clear width between each pair of obstacles (0 if they touch):
+    an obstacle of several parts (a group's boxes) counts as one, so only the closest
+    parts of two obstacles bound an opening between them."""
+    pairs, between = [], {}
+    for i, a in enumerate(shapes):
+        for j in range(i + 1, len(shapes)):
+            b = shapes[j]
+            if a.part_of and a.part_of == b.part_of:
+                continue  # two legs of one table (the dock), two boxes of one group
+            if np.hypot(*(b.centre - a.centre)) - a.radius - b.radius > hi + _WIDTH_TOL_M:
+                continue
+            key = tuple(sorted((_obstacle(a), _obstacle(b))))
+            closest = _closest_points(a, b)
+            width = 0.0 if closest is None else closest[0]
+            between[key] = min(between.get(key, np.inf), width)
+            if closest is not None:
+                pairs.append((i, j, *closest))
+    return pairs, between
+
+
 def _passages(scenario: Scenario, shapes: list[_Shape]) -> list[_Passage]:
     lo, hi = scenario.semantics.passage_width
     (x_min, y_min), (x_max, y_max) = scenario.bounds
     found: list[_Passage] = []
-    for i, a in enumerate(shapes):
-        for j in range(i + 1, len(shapes)):
-            b = shapes[j]
-            if a.table and a.table == b.table:
-                continue  # between two legs of one table: the dock, not a gap
-            if np.hypot(*(b.centre - a.centre)) - a.radius - b.radius > hi + _WIDTH_TOL_M:
-                continue
-            closest = _closest_points(a, b)
-            if closest is None:
-                continue
-            width, p, q = closest
-            if not lo - _WIDTH_TOL_M <= width <= hi + _WIDTH_TOL_M:  # Alg. 5, line 16
-                continue
-            centre = (p + q) / 2
-            if not (x_min <= centre[0] <= x_max and y_min <= centre[1] <= y_max):
-                continue
-            others = [s for k, s in enumerate(shapes) if k not in (i, j)]
-            if _any_hit(others, p, q):  # Alg. 5, lines 21-29: the opening must be free
-                continue
-            ends = np.vstack((p, q))
-            if _passage_depth(shapes, centre, ends) > MAX_PASSAGE_DEPTH_M + 1e-9:
-                continue  # the side of a corridor, not an opening
-            kind = "doorway" if a.is_wall and b.is_wall else "gap"
-            if kind == "gap" and not _traversable(scenario, shapes, centre, ends):
-                continue  # a pocket beside furniture the robot can enter at most
-            found.append(_Passage(kind, centre, ends, width, (a.name, b.name)))
+    pairs, between = _close_pairs(shapes, hi)
+    for i, j, width, p, q in pairs:
+        a, b = shapes[i], shapes[j]
+        if not lo - _WIDTH_TOL_M <= width <= hi + _WIDTH_TOL_M:  # Alg. 5, line 16
+            continue
+        if width > between[tuple(sorted((_obstacle(a), _obstacle(b))))] + _WIDTH_TOL_M:
+            continue  # other parts of the two obstacles are closer
+        centre = (p + q) / 2
+        if not (x_min <= centre[0] <= x_max and y_min <= centre[1] <= y_max):
+            continue
+        others = [s for k, s in enumerate(shapes) if k not in (i, j)]
+        if _any_hit(others, p, q):  # Alg. 5, lines 21-29: the opening must be free
+            continue
+        ends = np.vstack((p, q))
+        if _passage_depth(shapes, centre, ends) > MAX_PASSAGE_DEPTH_M + 1e-9:
+            continue  # the side of a corridor, not an opening
+        kind = "doorway" if a.is_wall and b.is_wall else "gap"
+        if kind == "gap" and not _traversable(scenario, shapes, centre, ends):
+            continue  # a pocket beside furniture the robot can enter at most
+        found.append(_Passage(kind, centre, ends, width, (a.name, b.name)))
     return _merge(found)
 
 

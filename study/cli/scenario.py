@@ -1,5 +1,5 @@
 """``asa scenario``: list the shipped scenes, show one scene's components, write its map,
-check that the robot can drive a scene, generate a random one.
+check that the robot can drive a scene, generate a random one, build one from a ROS map.
 
 Thin click commands over :mod:`study.jobs.scenes`; bad input is a ``ValueError`` naming
 the file (and the field), which the ``asa`` shell prints as one line with exit status 2.
@@ -14,6 +14,7 @@ from pathlib import Path
 
 import click
 
+from sim.map_scene import write_scene_from_map
 from sim.semantics import derive_components
 from study.cli import SEED
 from study.jobs.scenes import (
@@ -174,3 +175,89 @@ def generate_command(seed: int, rooms: int | None, out: Path, force: bool) -> No
         raise ValueError(f"--out {out}: exists already; pass --force to overwrite it")
     path = generate(out, seed=seed, rooms=rooms, force=force)
     click.echo(f"wrote {path}")
+
+
+def _numbers(flag: str, text: str, count: tuple[int, ...], what: str) -> list[float]:
+    """``"1.5,2.4,0"`` -> floats; a ValueError naming the flag unless ``count`` of them."""
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError:
+        values = []
+    if len(values) not in count or not all(math.isfinite(v) for v in values):
+        raise ValueError(f"{flag}: must be {what} (numbers separated by commas), got {text!r}")
+    return values
+
+
+def _placements(
+    start: str | None, dock: str | None, tables: tuple[str, ...], inspect: str | None
+) -> dict:
+    """The placements given as flags, as fields of an additions file."""
+    out: dict = {}
+    for flag, text, key in (("--start", start, "start"), ("--dock", dock, "dock")):
+        if text is not None:
+            x, y, yaw = _numbers(flag, text, (3,), "X,Y,YAW with YAW in degrees")
+            out[key] = {"x": x, "y": y, "yaw_deg": yaw}
+    if tables:
+        out["tables"] = []
+        for k, text in enumerate(tables):
+            v = _numbers("--table", text, (3, 5), "X,Y,YAW or X,Y,YAW,LENGTH,WIDTH")
+            table = {"name": f"table_{k}" if k else "table", "centre": v[:2], "yaw_deg": v[2]}
+            out["tables"].append(table | ({"size": v[3:]} if len(v) == 5 else {}))
+    if inspect is not None:
+        out["inspect"] = {"centre": _numbers("--inspect", inspect, (2,), "X,Y")}
+    return out
+
+
+@scenario.command("from-map")
+@click.argument("map_yaml", metavar="MAP.yaml", type=click.Path(path_type=Path))
+@click.option("--start", help="Pose A: X,Y,YAW [m, m, deg].")
+@click.option("--dock", help="Pose B: X,Y,YAW [m, m, deg]; under the first table.")
+@click.option(
+    "--table",
+    "tables",
+    multiple=True,
+    help="A table: X,Y,YAW or X,Y,YAW,LENGTH,WIDTH [m, deg] (default 1.2 x 0.9 m); repeatable.",
+)
+@click.option("--inspect", help="The object to inspect, a cylinder at X,Y [m].")
+@click.option(
+    "--additions",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="A TOML file of additions (sim/scenarios/FORMAT.md); flags replace its fields.",
+)
+@click.option(
+    "--out",
+    "out",
+    required=True,
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="The scenario TOML file to write.",
+)
+@click.option("--force", is_flag=True, help="Overwrite --out if it exists.")
+def from_map_command(
+    map_yaml: Path,
+    start: str | None,
+    dock: str | None,
+    tables: tuple[str, ...],
+    inspect: str | None,
+    additions: Path | None,
+    out: Path,
+    force: bool,
+) -> None:
+    """Build a scenario from a ROS map_server map (YAML + PGM/PNG).
+
+    The occupied cells become merged axis-aligned walls and boxes; A, B, tables and
+    the object to inspect come from the flags or --additions. Check the result with
+    `asa scenario check`.
+    """
+    if out.exists() and not force:
+        raise ValueError(f"--out {out}: exists already; pass --force to overwrite it")
+    path, counts = write_scene_from_map(
+        map_yaml,
+        out,
+        additions_file=additions,
+        placements=_placements(start, dock, tables, inspect),
+        force=True,
+    )
+    click.echo(
+        f"wrote {path}: {counts['walls']} walls and {counts['boxes']} boxes from "
+        f"{counts['occupied_cells']} occupied cells"
+    )
