@@ -131,6 +131,9 @@ def test_the_smallest_n_is_interpolated_between_sizes():
     assert found["n"] == 11  # 6 + (0.8 - 0.5) / (0.9 - 0.5) * 6 = 10.5
     assert found["low"] <= found["n"] <= found["high"]
     assert describe_n(found).startswith("N = 11 [")
+    first = n_for_power(curve({6: (950, 1000), 12: (999, 1000)}))
+    assert first["at_most"] == 6 and describe_n(first) == "N <= 6"  # not simulated below 6
+    assert found["at_most"] is None
     never = n_for_power(curve({6: (10, 100), 12: (20, 100)}))
     assert never["n"] is None and never["beyond"] == 12 and describe_n(never) == "N > 12"
     test = {"test": "a vs b", "curve": points, "n_for_power": found}

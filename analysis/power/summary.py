@@ -71,6 +71,8 @@ def n_for_power(points: Sequence[dict], target: float = TARGET_POWER) -> dict:
     CIs (the Monte Carlo uncertainty; not that of the bank); ``simulated``: the smallest
     simulated size whose estimate reaches it. A value is None when the curve does not reach
     ``target`` within the simulated sizes (``beyond`` is then the largest size).
+    ``at_most``: the smallest simulated size when it reaches the target already (the
+    curve below it was not simulated: the N needed may be smaller), else None.
     """
     sizes = [p["n"] for p in points]
 
@@ -86,13 +88,17 @@ def n_for_power(points: Sequence[dict], target: float = TARGET_POWER) -> dict:
         "high": at("ci_low"),
         "simulated": reached[0] if reached else None,
         "beyond": None if reached else (max(sizes) if sizes else None),
+        "at_most": sizes[0] if reached and reached[0] == sizes[0] else None,
     }
 
 
 def describe_n(found: dict) -> str:
-    """``"N = 12 [9, 15]"``, or ``"N > 24"`` when the target is not reached."""
+    """``"N = 12 [9, 15]"``; ``"N > 24"`` when the target is not reached, ``"N <= 6"``
+    when the smallest simulated size reaches it already."""
     if found["n"] is None:
         return f"N > {found['beyond']}"
+    if found.get("at_most") is not None:
+        return f"N <= {found['at_most']}"
     high = "?" if found["high"] is None else f"{found['high']}"
     low = found["low"] if found["low"] is not None else found["n"]
     return f"N = {found['n']} [{low}, {high}]"
