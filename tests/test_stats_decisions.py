@@ -41,3 +41,16 @@ def test_decisions_equal_those_of_the_full_analysis(rng, posthoc, test):
         others = [f for f in POSTHOC if f != posthoc]
         assert all(lean["posthoc"][f] == [] for f in others)
         assert lean["pairs"] is None and lean["apa"] is None and lean["mixed"] is None
+
+
+def test_the_direct_table_and_the_cell_means_give_the_same_bits(rng):
+    """One row per cell fills the table directly; a repeated row takes the groupby path
+    (cell means). Both must give bit-identical statistics (the layout of the table
+    matters to numpy's sums in the last bit)."""
+    df = _frame(rng, 40, 3, effect=0.3, whole=False)
+    df["value"] *= 37.1
+    doubled = pd.concat([df, df.iloc[[0]]], ignore_index=True)  # one cell twice, same value
+    a = analyse(df, dv="value", within="mode", subject="participant", mixed=False)
+    b = analyse(doubled, dv="value", within="mode", subject="participant", mixed=False)
+    for key in ("descriptives", "anova", "sphericity", "greenhouse_geisser", "posthoc", "pairs"):
+        assert a[key] == b[key], key

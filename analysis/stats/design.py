@@ -210,7 +210,8 @@ def repeated_measures(df: pd.DataFrame, *, dv: str, within: str, subject: str) -
             f"every level of {within!r} ({_quoted(levels)}); need at least two"
             + (f" (dropped: {_quoted(dropped)})" if dropped else "")
         )
-    y = complete.to_numpy(dtype=float)
+    # row-major, as the groupby table was: numpy's sums depend on the layout in the last bit
+    y = np.ascontiguousarray(complete.to_numpy(dtype=float))
     y.setflags(write=False)
     return RepeatedMeasures(
         y=y,
