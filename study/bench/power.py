@@ -21,7 +21,7 @@ from analysis.power import Batch, PlannedTests, resample_batch
 from study.engine.protocol import load_protocol
 from study.jobs.power.bank import BankFile
 from study.jobs.power.cluster import dask_engine
-from study.jobs.power.run import PowerSettings, _build_bank, _slot_rows
+from study.jobs.power.run import PowerSettings, build_bank, slot_rows
 
 _SEED = 7061
 QUICK_PROTOCOL = """
@@ -55,7 +55,7 @@ def _bank_rate(protocol, entries: int, workers: int, folder: Path) -> dict:
     bank = BankFile(folder / f"bank_{workers}.sqlite", {"bench": workers}, resume=False)
     try:
         with dask_engine(None, workers) as engine:
-            wall = _build_bank(engine.client, bank, protocol, settings, lambda *a: None)
+            wall = build_bank(engine.client, bank, protocol, settings, lambda *a: None)
         table, _ = bank.frames(entries)
     finally:
         bank.close()
@@ -71,7 +71,7 @@ def _synthetic_bank(protocol, b: int, rng: np.random.Generator) -> tuple[pd.Data
     """A bank of ``b`` participants with random values for every planned metric of
     ``protocol`` (levels as the report's: the modes, and the baseline for secondary-task
     metrics): the shape of a real bank, for the resampling rate."""
-    slots = _slot_rows(protocol, b)
+    slots = slot_rows(protocol, b)
     entries = pd.DataFrame({"entry": np.arange(b), "row": slots if slots else [0] * b})
     rows = []
     metrics = [m for m in protocol.analysis.metrics if m in BY_NAME]

@@ -89,7 +89,7 @@ def check_settings(s: PowerSettings) -> PowerSettings:
     return dataclasses.replace(s, sizes=tuple(sorted(set(sizes))))
 
 
-def _slot_rows(proto: Protocol, count: int) -> list[int] | None:
+def slot_rows(proto: Protocol, count: int) -> list[int] | None:
     """The counterbalancing row of slots 0 .. count - 1 (None for the random scheme)."""
     if proto.counterbalancing == "random":
         return None
@@ -129,14 +129,14 @@ def run_power(
     start = time.perf_counter()
     s = check_settings(settings if settings is not None else PowerSettings())
     proto = load_protocol(protocol) if isinstance(protocol, str | Path) else protocol
-    slots = _slot_rows(proto, max(s.sizes))
+    slots = slot_rows(proto, max(s.sizes))
     say = progress if progress is not None else (lambda stage, done, total: None)
     folder = Path(out)
     folder.mkdir(parents=True, exist_ok=True)
     bank = BankFile(folder / BANK_FILE, _identity(proto, s), resume=s.resume)
     try:
         with dask_engine(s.scheduler, s.workers) as engine:
-            bank_s = _build_bank(engine.client, bank, proto, s, say)
+            bank_s = build_bank(engine.client, bank, proto, s, say)
             entries, outcomes = bank.frames(s.bank)
             for n in s.sizes:  # bank entry i drove slot i's order: always enough
                 check_size(slot_pools(entries, slots), slots, n)
@@ -166,7 +166,7 @@ def _identity(proto: Protocol, s: PowerSettings) -> dict[str, Any]:
     }
 
 
-def _build_bank(client, bank: BankFile, proto: Protocol, s: PowerSettings, say: Progress) -> float:
+def build_bank(client, bank: BankFile, proto: Protocol, s: PowerSettings, say: Progress) -> float:
     """Drive the bank entries not yet in the bank file; each stored as it completes."""
     from distributed import as_completed
 
