@@ -41,6 +41,7 @@ __all__ = [
     "LASER_DEFAULTS",
     "ROBOT_DEFAULTS",
     "SCENARIO_DIR",
+    "SEMANTIC_SOURCES",
     "Box",
     "CameraSpec",
     "ComponentOverride",
@@ -61,6 +62,7 @@ SCENARIO_DIR = Path(__file__).resolve().parent / "scenarios"
 MAX_RAYS = 10_000  # beams of one laser scan (fov / resolution)
 MAX_PIXELS = 4096  # a camera image's width or height [px]
 GRID_RESOLUTION_M = 0.05  # [m] the cell size the study's occupancy grids use
+SEMANTIC_SOURCES = ("geometry", "map")  # [semantics] source: the shapes, or a map image
 
 
 # ------------------------------------------------------------------------ defaults
@@ -281,7 +283,7 @@ def _override(r: FieldReader) -> ComponentOverride:
     return o
 
 
-def _semantics(r: FieldReader) -> SemanticSettings:
+def _semantics(r: FieldReader, base: Path | None) -> SemanticSettings:
     width = r.vector("passage_width", 2, [0.6, 1.1], positive=True)
     if width[0] >= width[1]:
         raise r.fail("passage_width", f"must be [min, max] with min < max, got {list(width)}")
@@ -289,14 +291,39 @@ def _semantics(r: FieldReader) -> SemanticSettings:
     for rr in r.tables("remove"):
         removes.append(rr.string("id"))
         rr.finish()
+    source = r.string("source", "geometry", allowed=SEMANTIC_SOURCES)
+    map_file = r.string("map", "")
+    if map_file and source != "map":
+        raise r.fail("map", 'names the map of source = "map"; set source = "map" or drop it')
     s = SemanticSettings(
         passage_width=width,
         surface_spacing=r.number("surface_spacing", 0.1, positive=True),
         components=tuple(_override(cr) for cr in r.tables("components")),
         remove=tuple(removes),
+        source=source,
+        map_file=map_file,
+        map_grid=_semantic_map(r, map_file, base),
     )
     r.finish()
     return s
+
+
+def _semantic_map(r: FieldReader, map_file: str, base: Path | None) -> Any:
+    """The occupancy grid of ``[semantics] map`` (a ROS map_server YAML, relative to the
+    scenario file's folder), or None without one."""
+    if not map_file:
+        return None
+    from sim.map_files import load_ros_map  # sim.map_files imports this module
+
+    path = Path(map_file)
+    if not path.is_absolute() and base is not None:
+        path = base / path
+    try:
+        return load_ros_map(path)
+    except FileNotFoundError:
+        raise r.fail("map", f"no such map file {str(path)!r} (a ROS map_server YAML)") from None
+    except ValueError as error:
+        raise r.fail("map", f"cannot use it: {error}") from None
 
 
 def _inside(polygon: np.ndarray, x: float, y: float) -> bool:
@@ -426,7 +453,8 @@ def parse_scenario(data: dict[str, Any], source: str = "<scenario>") -> Scenario
     region = qr.points("polygon", minimum=3, default=[]) if qr.data else np.empty((0, 2))
     qr.finish()
 
-    semantics = _semantics(r.sub("semantics"))
+    base = Path(source).parent if source and not source.startswith("<") else None
+    semantics = _semantics(r.sub("semantics"), base)
     r.finish()
 
     for label, pose in (("start", start), ("dock", dock.pose if dock else None)):

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -150,6 +151,11 @@ class SemanticSettings:
     surface_spacing: float  # [m] between sampled surface points of objects and walls
     components: tuple[ComponentOverride, ...]
     remove: tuple[str, ...]  # ids of derived components to drop
+    # where doorways, gaps, objects and walls come from: "geometry" (the exact shapes) or
+    # "map" (an occupancy image, thesis appendix Alg. 4-5); docks come from the tables
+    source: str = "geometry"
+    map_file: str = ""  # the map's YAML as the scenario names it ("" : the scene rendered)
+    map_grid: Any = None  # sim.occupancy.OccupancyGrid read from map_file, else None
 
 
 @dataclass(frozen=True, slots=True)

@@ -3,14 +3,16 @@
 
 The candidate targets of the contextual tasks: doorways and gaps (centre and two end
 points), the dock under a table (centre), objects and wall segments (surface points).
-The thesis found them in the SLAM map image with OpenCV; here the scene's polygons
-and circles are known exactly, so the same ideas apply to the geometry and a new
-scenario needs no hand annotation. :func:`derive_components` derives them once;
+The thesis found them in the SLAM map image with OpenCV; a scene's polygons and
+circles are known exactly, so by default the same ideas apply to the geometry and a new
+scenario needs no hand annotation; with ``[semantics] source = "map"`` they come from
+an occupancy map image as in the thesis (:mod:`sim.semantics.map_image`,
+:mod:`sim.semantics.map_passages`). :func:`derive_components` derives them once;
 :func:`in_robot_frame` and :class:`RobotFrameComponents` put them into the robot
 frame every tick.
 """
 
-from sim.semantics.derive import MAX_SURFACE_POINTS, derive_components
+from sim.semantics.derive import MAX_SURFACE_POINTS, derive_components, with_semantic_source
 from sim.semantics.passages import (
     CORRIDOR_PROBE_SLACK_M,
     DEPTH_STEP_M,
@@ -39,4 +41,5 @@ __all__ = [
     "passage_extent",
     "target_distances",
     "target_points",
+    "with_semantic_source",
 ]

@@ -10,6 +10,7 @@ two long faces, at most ``surface_spacing`` apart (corners included). Then
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import pickle
 from collections.abc import Sequence
@@ -17,8 +18,10 @@ from collections.abc import Sequence
 import numpy as np
 
 from sim.scenario import ComponentOverride, Scenario
+from sim.semantics.map_image import map_surface_components, prepare_map, scenario_map
+from sim.semantics.map_passages import map_passages
 from sim.semantics.outlines import _EPS_M, _Shape, _shapes
-from sim.semantics.passages import _crossing_normal, _passages
+from sim.semantics.passages import _crossing_normal, _Passage, _passages
 from sim.semantics.robot_frame import _pack
 from sim.types import COMPONENT_KINDS, SemanticComponent
 
@@ -137,10 +140,9 @@ def _check_budget(scenario: Scenario) -> None:
         )
 
 
-def _passage_components(scenario: Scenario, shapes: list[_Shape]) -> list[SemanticComponent]:
+def _passage_components(passages: list[_Passage]) -> list[SemanticComponent]:
     """Doorways, then gaps; ids ``doorway_0..``/``gap_0..`` numbered by centre x, then y."""
     out: list[SemanticComponent] = []
-    passages = _passages(scenario, shapes)
     for kind in ("doorway", "gap"):
         mine = sorted(
             (p for p in passages if p.kind == kind),
@@ -219,11 +221,26 @@ def _surface_components(scenario: Scenario, shapes: list[_Shape]) -> list[Semant
     return out
 
 
+def _map_components(scenario: Scenario) -> list[SemanticComponent]:
+    """Doorways, gaps, docks, objects and walls with ``[semantics] source = "map"``: all
+    but the docks (the tables, known exactly) from the map image."""
+    image = prepare_map(scenario_map(scenario), scenario.tables)
+    out = _passage_components(map_passages(image, scenario)) + _dock_components(scenario)
+    counts = {"object": 0, "wall": 0}
+    for kind, points, names in map_surface_components(image, scenario):
+        centre = points.mean(axis=0)
+        out.append(_component(f"{kind}_{counts[kind]}", kind, centre, points, source=names))
+        counts[kind] += 1
+    return out
+
+
 def _derived(scenario: Scenario) -> list[SemanticComponent]:
+    if scenario.semantics.source == "map":
+        return _map_components(scenario)
     shapes = _shapes(scenario)
     _check_budget(scenario)
     return (
-        _passage_components(scenario, shapes)
+        _passage_components(_passages(scenario, shapes))
         + _dock_components(scenario)
         + _surface_components(scenario, shapes)
     )
@@ -293,6 +310,18 @@ def derive_components(scenario: Scenario) -> tuple[SemanticComponent, ...]:
             _DERIVED.pop(next(iter(_DERIVED)))
         _DERIVED[key] = _derive(scenario)
     return _DERIVED[key]
+
+
+def with_semantic_source(scenario: Scenario, source: str) -> Scenario:
+    """``scenario`` with ``[semantics] source`` set to ``source`` ("geometry" or "map",
+    the scene rendered without a map file); unchanged when it has that source already.
+    Switching drops the hand overrides and removals (they name the other source's ids)."""
+    if scenario.semantics.source == source:
+        return scenario
+    semantics = dataclasses.replace(
+        scenario.semantics, source=source, map_file="", map_grid=None, components=(), remove=()
+    )
+    return dataclasses.replace(scenario, semantics=semantics)
 
 
 def _derive(scenario: Scenario) -> tuple[SemanticComponent, ...]:

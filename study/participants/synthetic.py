@@ -14,7 +14,7 @@ import numpy as np
 from numba import njit
 
 from questionnaires import nasa_tlx
-from sim.semantics import derive_components
+from sim.semantics import derive_components, with_semantic_source
 from sim.types import Observation, SemanticComponent, wrap_angle
 from study.participants.base import ParticipantBase
 from study.participants.population import (
@@ -175,6 +175,10 @@ class SyntheticParticipant(ParticipantBase):
         self._passages: list[tuple[str, str, float, float]] = []  # kind, id, centre [m]
         self._expected_s = math.nan
         self._components: dict[str, tuple[SemanticComponent, ...]] = {}
+        # where this person's own task labels (the truth recognition is scored against)
+        # take their components from: None the scene's semantics; "geometry" the exact
+        # shapes, when the assistance reads a map of a scene drawn exactly (issue 23)
+        self.label_semantics: str | None = None
         self._nearby: dict[str, _Nearby | None] = {}
         self._near: _Nearby | None = None
         self._inspect_id = ""
@@ -255,9 +259,12 @@ class SyntheticParticipant(ParticipantBase):
         if not info.drive:
             return
         length = 0.0
-        key = info.scenario.source or info.scenario.name
+        scenario = info.scenario
+        if self.label_semantics is not None:
+            scenario = with_semantic_source(scenario, self.label_semantics)
+        key = f"{scenario.source or scenario.name} {scenario.semantics.source}"
         if key not in self._components:
-            self._components[key] = derive_components(info.scenario)
+            self._components[key] = derive_components(scenario)
         comps = self._components[key]
         legs = self._driver._legs  # the planned route (same package, read-only)
         polylines = [leg.points for leg in legs if hasattr(leg, "points")]
