@@ -263,6 +263,17 @@ def _with_defaults(data: dict[str, Any], source: str) -> dict[str, Any]:
     return out
 
 
+def _map_semantics(table: Any, source: str) -> dict[str, Any]:
+    """The scene's ``[semantics]``: the additions' table with ``source = "map"`` unless
+    it names one (the map image, as the scene renders it, has the map's doorways; the
+    geometry of one wall blob has none)."""
+    if not isinstance(table, dict):
+        raise _fail(source, "semantics", "must be a table")
+    if "map" in table:
+        raise _fail(source, "semantics.map", "from-map scenes read the map they are built of")
+    return {"source": "map", **table}
+
+
 def scene_from_map(map_yaml: str | Path, additions: dict[str, Any], *, source: str) -> dict:
     """Scenario data (the dict a scenario TOML file holds) from a ROS map and additions.
 
@@ -315,6 +326,7 @@ def scene_from_map(map_yaml: str | Path, additions: dict[str, Any], *, source: s
     for key in ("inspection_object", "start", "dock", "question_region", "robot", "semantics"):
         if key in data:
             scene[key] = data[key]
+    scene["semantics"] = _map_semantics(scene.get("semantics", {}), source)
     for key in ("tables", "cylinders"):
         if data.get(key):
             scene[key] = data[key]
@@ -330,12 +342,14 @@ def write_scene_from_map(
     *,
     additions_file: str | Path | None = None,
     placements: dict[str, Any] | None = None,
+    semantics: str | None = None,
     force: bool = False,
 ) -> tuple[Path, dict[str, int]]:
     """Write the scenario of a ROS map with its additions to ``out``.
 
     ``additions_file`` is a TOML file of additions (format: ``sim/scenarios/FORMAT.md``);
-    ``placements`` (e.g. from the command line) replace its fields of the same name.
+    ``placements`` (e.g. from the command line) replace its fields of the same name;
+    ``semantics`` ("map" or "geometry") replaces the additions' ``[semantics] source``.
     Returns the path written and counts: ``walls``, ``boxes`` (from the map) and
     ``occupied_cells``.
     """
@@ -352,6 +366,9 @@ def write_scene_from_map(
             raise ValueError(f"{source}: cannot read the additions file: {error}") from None
         additions = loads_toml(text, source)
     additions = {**additions, **(placements or {})}
+    if semantics is not None:
+        table = additions.get("semantics", {})
+        additions["semantics"] = {**(table if isinstance(table, dict) else {}), "source": semantics}
     scene = scene_from_map(map_yaml, additions, source=source)
     try:
         body = dumps(scene)

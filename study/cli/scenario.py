@@ -231,6 +231,12 @@ def _placements(
     type=click.Path(dir_okay=False, path_type=Path),
     help="The scenario TOML file to write.",
 )
+@click.option(
+    "--semantics",
+    type=click.Choice(["map", "geometry"]),
+    help="Where doorways, gaps, objects and walls come from: the map image (thesis "
+    "Alg. 4-5; the default) or the walls' and boxes' geometry.",
+)
 @click.option("--force", is_flag=True, help="Overwrite --out if it exists.")
 def from_map_command(
     map_yaml: Path,
@@ -240,13 +246,16 @@ def from_map_command(
     inspect: str | None,
     additions: Path | None,
     out: Path,
+    semantics: str | None,
     force: bool,
 ) -> None:
     """Build a scenario from a ROS map_server map (YAML + PGM/PNG).
 
     The occupied cells become merged axis-aligned walls and boxes; A, B, tables and
-    the object to inspect come from the flags or --additions. Check the result with
-    `asa scenario check`.
+    the object to inspect come from the flags or --additions. The semantic components
+    come from the map image (the scene rendered: the map's cells plus the additions)
+    unless --semantics geometry or the additions' [semantics] source say otherwise.
+    Check the result with `asa scenario check`.
     """
     if out.exists() and not force:
         raise ValueError(f"--out {out}: exists already; pass --force to overwrite it")
@@ -255,6 +264,7 @@ def from_map_command(
         out,
         additions_file=additions,
         placements=_placements(start, dock, tables, inspect),
+        semantics=semantics,
         force=True,
     )
     click.echo(
