@@ -118,15 +118,30 @@ def _legs(labels: np.ndarray, grid: OccupancyGrid, tables: tuple[Table, ...]) ->
     return leg
 
 
-def _parts(occupied: np.ndarray, legs: np.ndarray, res: float) -> np.ndarray:
-    """Objects and walls of the occupied, non-leg cells (:attr:`MapImage.parts`).
+def _table_cells(grid: OccupancyGrid, tables: tuple[Table, ...]) -> np.ndarray:
+    """(rows, cols) bool: the cells whose centre lies under a table's top grown by
+    ``TABLE_MARGIN_M`` (the dock: neither object nor wall)."""
+    out = np.zeros(grid.occupied.shape, dtype=bool)
+    if not tables:
+        return out
+    rows, cols = grid.occupied.shape
+    rc = np.stack(np.meshgrid(np.arange(rows), np.arange(cols), indexing="ij"), axis=-1)
+    xy = np.asarray(grid.origin) + (rc[..., ::-1].reshape(-1, 2) + 0.5) * grid.resolution
+    for table in tables:
+        out |= _in_table(xy, table, TABLE_MARGIN_M).reshape(rows, cols)
+    return out
+
+
+def _parts(occupied: np.ndarray, blobs: np.ndarray, dock: np.ndarray, res: float) -> np.ndarray:
+    """Objects and walls of the occupied cells not under a table (``dock``), given their
+    8-connected ``blobs`` (:attr:`MapImage.parts`).
 
     An object is what survives an opening by a disc ``OBJECT_MIN_WIDTH_M`` across (a
-    wall is thinner), with the occupied cells within two cells of it; of the rest, a
-    blob whose bounding box reaches ``WALL_MIN_LENGTH_M`` is wall, a smaller one an
-    object too (a thin box).
+    wall is thinner), with the occupied cells within two cells of it; the rest of a blob
+    whose bounding box reaches ``WALL_MIN_LENGTH_M`` is wall, the rest of a smaller blob
+    an object too (a thin box).
     """
-    body = occupied & ~legs
+    body = occupied & ~dock
     size = 2 * max(int(round(OBJECT_MIN_WIDTH_M / res / 2)), 1) + 1
     disc = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (size, size))
     thick = cv2.morphologyEx(body.astype(np.uint8), cv2.MORPH_OPEN, disc).astype(bool)
@@ -136,15 +151,15 @@ def _parts(occupied: np.ndarray, legs: np.ndarray, res: float) -> np.ndarray:
         distance, (rows, cols) = ndimage.distance_transform_edt(objects == 0, return_indices=True)
         near = body & (distance <= 2.0)
         parts[near] = objects[rows[near], cols[near]]
-    rest, m = ndimage.label(body & (parts == 0), structure=np.ones((3, 3)))
-    for k, box in enumerate(ndimage.find_objects(rest), start=1):
-        extent = max(box[0].stop - box[0].start, box[1].stop - box[1].start) * res
-        cells = rest[box] == k
-        if extent >= WALL_MIN_LENGTH_M - 1e-9:
-            parts[box][cells] = -1
-        else:
-            n += 1
-            parts[box][cells] = n
+    long_blob = np.zeros(int(blobs.max()) + 1, dtype=bool)
+    for k, box in enumerate(ndimage.find_objects(blobs), start=1):
+        if box is not None:
+            extent = max(box[0].stop - box[0].start, box[1].stop - box[1].start) * res
+            long_blob[k] = extent >= WALL_MIN_LENGTH_M - 1e-9
+    rest = body & (parts == 0)
+    parts[rest & long_blob[blobs]] = -1
+    small, _ = ndimage.label(rest & ~long_blob[blobs], structure=np.ones((3, 3)))
+    parts[small > 0] = n + small[small > 0]
     return parts
 
 
@@ -174,7 +189,7 @@ def prepare_map(grid: OccupancyGrid, tables: tuple[Table, ...] = ()) -> MapImage
         grid=cleaned,
         labels=labels.astype(np.int32),
         leg=leg,
-        parts=_parts(occupied, leg[labels], res),
+        parts=_parts(occupied, labels, _table_cells(cleaned, tables), res),
         boundary=(edges > 0) & occupied,
         clearance=clearance_map(cleaned),
     )

@@ -164,11 +164,10 @@ def _depth_steps(image: MapImage, centre: np.ndarray, ends: np.ndarray, cap: int
         # a probe grazing a cell's edge counts, as in the geometry: look a hair each way
         shift = (GRAZE_M * np.array([-1.0, 1.0]))[:, None] * normal  # (2, 2)
         lines = origins[:, None, None, :] + shift[None, :, None, :]  # (cap, 2, 1, 2)
-
-        def hit(ray: np.ndarray) -> np.ndarray:
-            return image.occupied_at(lines + ray[None, None]).any(axis=(1, 2))
-
-        both = hit(t[:, None] * along) & hit(-t[:, None] * along)
+        ray = t[:, None] * along  # (m, 2)
+        both = image.occupied_at(lines + ray).any(axis=(1, 2)) & image.occupied_at(
+            lines - ray
+        ).any(axis=(1, 2))
         total += cap if both.all() else int(np.argmin(both))
     return min(total, cap)
 

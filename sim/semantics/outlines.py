@@ -112,6 +112,8 @@ def _closest_points(a: _Shape, b: _Shape) -> tuple[float, np.ndarray, np.ndarray
     dist = np.linalg.norm(q_all - p_all, axis=1)
     best = int(np.argmin(dist))
     gap = float(dist[best])
+    if gap <= 0:
+        return None  # touching (as the circle's case): no direction across
     offset = q_all[best] - p_all[best]  # unique for convex sets
     across = np.array([-offset[1], offset[0]]) / gap
     along = p_all[dist <= gap + _TIE_M] @ across

@@ -27,6 +27,7 @@ GROUPS: dict[str, str] = {
     "synth": "study.bench.synth",
     "recognition": "study.bench.recognition",
     "scenes": "study.bench.scenes",
+    "map_semantics": "study.bench.map_semantics",
     "power": "study.bench.power",
 }
 
