@@ -36,8 +36,6 @@ Between two wall blobs it is a doorway, else a gap.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from scipy.spatial import cKDTree
 
@@ -72,19 +70,21 @@ def _candidates(image: MapImage, lo: float, hi: float) -> tuple[np.ndarray, np.n
     pairs = tree.query_pairs(hi + 1e-9, output_type="ndarray")
     width = np.linalg.norm(xy[pairs[:, 0]] - xy[pairs[:, 1]], axis=1)
     pairs, width = pairs[width >= lo - 1e-9], width[width >= lo - 1e-9]
-    pairs, width = _closest(tree, xy, pairs, width, math.ceil(8 * NEIGHBOUR_M / res) + 1)
+    for radius in (1.5 * res, NEIGHBOUR_M):  # the 8 neighbours first: cheap, drops most
+        pairs, width = _closest(tree, xy, pairs, width, radius)
     return xy, pairs[_free(image, xy[pairs[:, 0]], xy[pairs[:, 1]]) >= FREE_SHARE - 1e-12]
 
 
 def _closest(
-    tree: cKDTree, xy: np.ndarray, pairs: np.ndarray, width: np.ndarray, most: int
+    tree: cKDTree, xy: np.ndarray, pairs: np.ndarray, width: np.ndarray, radius: float
 ) -> tuple[np.ndarray, np.ndarray]:
     """Step 2: the pairs (and widths) whose ends are each the other's nearest boundary
-    cell among those within ``NEIGHBOUR_M`` of it (``most`` bounds how many there are)."""
-    near = tree.query_ball_point(xy, NEIGHBOUR_M + 1e-9)
-    table = np.full((len(xy), min(most, max(map(len, near)))), -1)
-    for i, row in enumerate(near):
-        table[i, : len(row)] = row[: table.shape[1]]
+    cell among those within ``radius`` [m] of it."""
+    ends = np.unique(pairs)
+    near = tree.query_ball_point(xy[ends], radius + 1e-9)
+    table = np.full((len(xy), max(map(len, near), default=1)), -1)
+    for i, row in zip(ends, near, strict=True):
+        table[i, : len(row)] = row
     keep = np.ones(len(pairs), dtype=bool)
     for mine, other in ((0, 1), (1, 0)):
         around = table[pairs[:, mine]]  # (k, m): cells near one end
