@@ -1,13 +1,9 @@
 """Doorways and gaps found in an occupancy map image (thesis appendix Alg. 5, adapted;
 spec section 6).
 
-Alg. 5 splits each object (Alg. 4: contours closer than 1.0 m merged) into 24 azimuth
-parts about its centre and keeps pairs of parts whose closest points are a passage width
-apart with the line between them at least 95 % free, merging centres closer than 0.75 m.
-Taken literally it fails in rooms whose doorways are narrower than the 1.0 m merge (the
-walls on both sides of a doorway become one object, and one azimuth part holds both
-jambs; docs/results.md, issue 23). Here the parts are the contour pieces around each
-boundary cell, and a pair is kept as the exact-geometry derivation
+Alg. 5 pairs parts of the objects' contours (24 azimuth sectors each) a passage width
+apart; here the parts are the contour pieces around each boundary cell (why:
+docs/decisions.md, issue 23), and a pair is kept as the exact-geometry derivation
 (:mod:`sim.semantics.passages`) keeps a pair of shapes:
 
 1. candidates: pairs of boundary cells whose clear width, the distance between their
@@ -165,9 +161,8 @@ def _depth_steps(image: MapImage, centre: np.ndarray, ends: np.ndarray, cap: int
         shift = (GRAZE_M * np.array([-1.0, 1.0]))[:, None] * normal  # (2, 2)
         lines = origins[:, None, None, :] + shift[None, :, None, :]  # (cap, 2, 1, 2)
         ray = t[:, None] * along  # (m, 2)
-        both = image.occupied_at(lines + ray).any(axis=(1, 2)) & image.occupied_at(
-            lines - ray
-        ).any(axis=(1, 2))
+        ahead = image.occupied_at(lines + ray).any(axis=(1, 2))
+        both = ahead & image.occupied_at(lines - ray).any(axis=(1, 2))
         total += cap if both.all() else int(np.argmin(both))
     return min(total, cap)
 
