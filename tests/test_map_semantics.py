@@ -42,8 +42,10 @@ def _matches(found: np.ndarray, truth: np.ndarray) -> tuple[int, int, int]:
     if len(found) == 0 or len(truth) == 0:
         return 0, len(found), len(truth)
     d = np.linalg.norm(found[:, None] - truth[None], axis=2)
-    return int((d.min(0) <= MATCH_M).sum()), int((d.min(1) > MATCH_M).sum()), int(
-        (d.min(0) > MATCH_M).sum()
+    return (
+        int((d.min(0) <= MATCH_M).sum()),
+        int((d.min(1) > MATCH_M).sum()),
+        int((d.min(0) > MATCH_M).sum()),
     )
 
 
