@@ -1,13 +1,14 @@
 """Semantic components from an occupancy map image: the objects and walls of thesis
 appendix Alg. 4 (spec section 6), as the thesis found them in its SLAM map.
 
-:func:`prepare_map` cleans the image (speckle dropped, one-cell breaks closed), labels
-its 8-connected blobs and marks the cells of the morphological gradient (the boundary
-cells, Alg. 4's gradient and threshold). A blob whose bounding box reaches
-``WALL_MIN_LENGTH_M`` is walls (as ``asa scenario from-map`` decides), a smaller one an
-object; blobs under a table's top are its legs (the dock), neither.
-:func:`map_surface_components` turns them into ``object_<k>`` (the blob's contour) and
-``wall_<k>`` (a straight stretch of a wall blob's contour, ``cv2.approxPolyDP``)
+:func:`prepare_map` cleans the image (speckle dropped, gaps up to twice ``CLOSE_M``
+closed), labels its 8-connected blobs, marks the cells of the morphological gradient
+(the boundary cells, Alg. 4's gradient and threshold) and sorts the occupied cells into
+objects (what survives an opening ``OBJECT_MIN_WIDTH_M`` across, and small blobs) and
+walls (the rest of blobs at least ``WALL_MIN_LENGTH_M`` long, as ``asa scenario
+from-map`` decides); cells under a table's top are the dock, neither.
+:func:`map_surface_components` turns them into ``object_<k>`` (an object's contour) and
+``wall_<k>`` (a straight stretch of the walls' contours, ``cv2.approxPolyDP``)
 components. The doorways and gaps (Alg. 5) are :mod:`sim.semantics.map_passages`.
 """
 
@@ -32,7 +33,7 @@ WALL_MIN_LENGTH_M = 1.0  # [m] a blob whose bounding box is this long is walls
 WALL_TOLERANCE_M = 0.1  # [m] a wall contour's straight stretches deviate at most this
 WALL_MIN_SEGMENT_M = 0.3  # [m] shorter stretches of a wall contour are no wall segment
 NAME_REACH_M = 0.3  # [m] a scene element this near a map object names it
-TABLE_MARGIN_M = 0.05  # [m] a blob within a table's top grown by this is one of its legs
+TABLE_MARGIN_M = 0.05  # [m] a table's top grown by this covers its legs (the dock)
 _CROSS = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], np.uint8)
 
 
@@ -41,16 +42,14 @@ class MapImage:
     """A map cleaned for semantic extraction.
 
     ``grid`` the cleaned occupancy; ``labels`` (rows, cols) int32 its 8-connected blobs
-    (0 free); ``leg`` (blobs + 1,) bool, the blobs under a table's top; ``parts`` (rows,
-    cols) int32 what each occupied cell is part of: an object ``k >= 1``, a wall ``-1``,
-    a table leg or free ``0``; ``boundary`` (rows, cols) bool the occupied cells with a
-    free 4-neighbour; ``clearance`` (rows, cols) [m] distance from a cell centre to the
-    nearest occupied cell (0 on them).
+    (0 free); ``parts`` (rows, cols) int32 what each cell is part of: an object ``k >=
+    1``, a wall ``-1``, free or under a table ``0``; ``boundary`` (rows, cols) bool the
+    occupied cells with a free 4-neighbour; ``clearance`` (rows, cols) [m] distance from
+    a cell centre to the nearest occupied cell (0 on them).
     """
 
     grid: OccupancyGrid
     labels: np.ndarray
-    leg: np.ndarray
     parts: np.ndarray
     boundary: np.ndarray
     clearance: np.ndarray
@@ -136,10 +135,10 @@ def _parts(occupied: np.ndarray, blobs: np.ndarray, dock: np.ndarray, res: float
     """Objects and walls of the occupied cells not under a table (``dock``), given their
     8-connected ``blobs`` (:attr:`MapImage.parts`).
 
-    An object is what survives an opening by a disc ``OBJECT_MIN_WIDTH_M`` across (a
-    wall is thinner), with the occupied cells within two cells of it; the rest of a blob
-    whose bounding box reaches ``WALL_MIN_LENGTH_M`` is wall, the rest of a smaller blob
-    an object too (a thin box).
+    An object is what survives an opening by a disc ``OBJECT_MIN_WIDTH_M`` across,
+    rounded up to an odd number of cells (a wall is thinner), with the occupied cells
+    within two cells of it; the rest of a blob whose bounding box reaches
+    ``WALL_MIN_LENGTH_M`` is wall, the rest of a smaller blob an object too (a thin box).
     """
     body = occupied & ~dock
     size = 2 * max(int(round(OBJECT_MIN_WIDTH_M / res / 2)), 1) + 1
@@ -164,9 +163,9 @@ def _parts(occupied: np.ndarray, blobs: np.ndarray, dock: np.ndarray, res: float
 
 
 def prepare_map(grid: OccupancyGrid, tables: tuple[Table, ...] = ()) -> MapImage:
-    """Clean ``grid`` and find its blobs, boundary and clearance (see the module
-    docstring); ``tables`` (the scene's, known exactly) keep their legs from being
-    dropped as speckle and mark them."""
+    """Clean ``grid`` and find its blobs, boundary, objects, walls and clearance (see the
+    module docstring); ``tables`` (the scene's, known exactly) keep their legs from being
+    dropped as speckle and mark the dock's cells."""
     res = grid.resolution
     labels, n = ndimage.label(grid.occupied, structure=np.ones((3, 3)))
     sizes = np.bincount(labels.ravel(), minlength=n + 1)
@@ -182,13 +181,11 @@ def prepare_map(grid: OccupancyGrid, tables: tuple[Table, ...] = ()) -> MapImage
         occupied = closed.astype(bool)
     cleaned = OccupancyGrid(occupied, grid.origin, res)
     labels, _ = ndimage.label(occupied, structure=np.ones((3, 3)))
-    leg = _legs(labels, cleaned, tables)
     gradient = cv2.morphologyEx(occupied.astype(np.uint8) * 255, cv2.MORPH_GRADIENT, _CROSS)
     _, edges = cv2.threshold(gradient, 127, 255, cv2.THRESH_BINARY)
     return MapImage(
         grid=cleaned,
         labels=labels.astype(np.int32),
-        leg=leg,
         parts=_parts(occupied, labels, _table_cells(cleaned, tables), res),
         boundary=(edges > 0) & occupied,
         clearance=clearance_map(cleaned),
