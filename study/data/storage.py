@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import datetime as dt
 import functools
+import re
 import sqlite3
 from pathlib import Path
 from typing import Any
@@ -29,6 +30,7 @@ from sqlalchemy import (
     Integer,
     String,
     Text,
+    TypeDecorator,
     UniqueConstraint,
     create_engine,
     event,
@@ -69,8 +71,34 @@ def utc_now() -> dt.datetime:
     return dt.datetime.now(dt.UTC)
 
 
+class UTCDateTime(TypeDecorator[dt.datetime]):
+    """A timestamp stored as UTC and read back timezone-aware UTC on every backend.
+
+    SQLite keeps no zone (SQLAlchemy writes the wall-clock digits and reads them back
+    naive) and PostgreSQL's ``timestamptz`` answers in the connection's time zone; so
+    values are converted to UTC on the way in (a naive one is taken as UTC) and marked
+    or converted to UTC on the way out. On SQLite the stored text is as before.
+    """
+
+    impl = DateTime(timezone=True)
+    cache_ok = True
+
+    def process_bind_param(self, value: dt.datetime | None, dialect: Any) -> dt.datetime | None:
+        if value is None or value.tzinfo is None:
+            return value
+        value = value.astimezone(dt.UTC)
+        return value.replace(tzinfo=None) if dialect.name == "sqlite" else value
+
+    def process_result_value(self, value: dt.datetime | None, dialect: Any) -> dt.datetime | None:
+        if value is None:
+            return None
+        if value.tzinfo is None:
+            return value.replace(tzinfo=dt.UTC)
+        return value.astimezone(dt.UTC)
+
+
 class Base(DeclarativeBase):
-    type_annotation_map = {dict[str, Any]: JSON, list[Any]: JSON}
+    type_annotation_map = {dict[str, Any]: JSON, list[Any]: JSON, dt.datetime: UTCDateTime}
 
 
 class Meta(Base):
@@ -87,7 +115,7 @@ class Study(Base):
     protocol_sha256: Mapped[str] = mapped_column(String(64))
     platform_version: Mapped[str] = mapped_column(String(64))
     seed: Mapped[int] = mapped_column(Integer)
-    created_at: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True), default=utc_now)
+    created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utc_now)
 
     participants: Mapped[list[Participant]] = relationship(back_populates="study")
 
@@ -105,7 +133,7 @@ class Participant(Base):
         default=list
     )  # e.g. ["manual", "reactive_bn", ...]
     seed: Mapped[int] = mapped_column(Integer)
-    created_at: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True), default=utc_now)
+    created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utc_now)
 
     study: Mapped[Study] = relationship(back_populates="participants")
     sessions: Mapped[list[SessionRow]] = relationship(back_populates="participant")
@@ -119,8 +147,8 @@ class SessionRow(Base):
     __tablename__ = "session"
     id: Mapped[int] = mapped_column(primary_key=True)
     participant_id: Mapped[int] = mapped_column(ForeignKey("participant.id"))
-    started_at: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True), default=utc_now)
-    ended_at: Mapped[dt.datetime | None] = mapped_column(DateTime(timezone=True))
+    started_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utc_now)
+    ended_at: Mapped[dt.datetime | None] = mapped_column(UTCDateTime)
     status: Mapped[str] = mapped_column(String(16), default="running")  # running/completed/aborted
     resumed: Mapped[bool] = mapped_column(Boolean, default=False)
     forced: Mapped[bool] = mapped_column(Boolean, default=False)
@@ -142,8 +170,8 @@ class Trial(Base):
     scenario: Mapped[str] = mapped_column(String(200))
     seed: Mapped[int] = mapped_column(Integer)
     status: Mapped[str] = mapped_column(String(16), default="running")  # TRIAL_STATUSES
-    started_at: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True), default=utc_now)
-    ended_at: Mapped[dt.datetime | None] = mapped_column(DateTime(timezone=True))
+    started_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utc_now)
+    ended_at: Mapped[dt.datetime | None] = mapped_column(UTCDateTime)
     # outcome, set in the completing transaction
     completed_task: Mapped[bool | None] = mapped_column(Boolean)  # False on timeout
     completion_time_s: Mapped[float | None] = mapped_column(Float)
@@ -193,7 +221,7 @@ class Event(Base):
     t: Mapped[float] = mapped_column(Float)  # [s] trial time (session time outside trials)
     kind: Mapped[str] = mapped_column(String(32))
     detail: Mapped[dict[str, Any]] = mapped_column(default=dict)
-    created_at: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True), default=utc_now)
+    created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utc_now)
 
 
 class Question(Base):
@@ -222,7 +250,7 @@ class Response(Base):
     item: Mapped[str] = mapped_column(String(64))
     value: Mapped[float | None] = mapped_column(Float)
     text: Mapped[str] = mapped_column(Text, default="")
-    created_at: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True), default=utc_now)
+    created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utc_now)
 
 
 class OrderSlot(Base):
@@ -240,29 +268,58 @@ class OrderSlot(Base):
     status: Mapped[str] = mapped_column(String(16), default="issued")  # SLOT_STATUSES
     # earlier holders released by exclusion: [{"code", "participant_id", "released_at"}]
     released: Mapped[list[Any]] = mapped_column(default=list)
-    created_at: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True), default=utc_now)
+    created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utc_now)
 
 
 # ------------------------------------------------------------------------- engine
 
 
+# URL schemes without a driver, and the driver the platform uses for them
+_DEFAULT_DRIVERS = {"postgresql": "postgresql+psycopg", "postgres": "postgresql+psycopg"}
+
+
 def database_url(db: str | Path) -> str:
     """``db`` as a SQLAlchemy URL: text of the form ``scheme://...`` is taken as written
-    (``sqlite:///x.db``, ``postgresql://host/study``); anything else is a file path and
-    becomes ``sqlite:///<absolute path>``."""
+    (``sqlite:///x.db``, ``postgresql+psycopg://user@host/study``), except that
+    ``postgresql://`` and ``postgres://`` get the psycopg 3 driver; anything else is a
+    file path and becomes ``sqlite:///<absolute path>``."""
     text = str(db)
-    return text if is_url(text) else f"sqlite:///{Path(text).resolve()}"
+    if not is_url(text):
+        return f"sqlite:///{Path(text).resolve()}"
+    scheme, rest = text.split("://", 1)
+    return f"{_DEFAULT_DRIVERS.get(scheme.lower(), scheme)}://{rest}"
 
 
 def database_file(db: str | Path) -> Path:
-    """The SQLite file of ``db`` (a path or a ``sqlite://`` URL), absolute; for other
-    databases a stand-in path in the working folder whose parent and stem name the
-    recordings folder."""
+    """The SQLite file of ``db`` (a path or a ``sqlite://`` URL), absolute; for a server
+    database a stand-in ``<working folder>/<database name>.db`` (never made), whose parent
+    and stem name the local folders beside it: recordings, a synthetic study's scratch
+    files and lock files (docs/decisions.md, "PostgreSQL")."""
     text = str(db)
     if not is_url(text):
         return Path(text).resolve()
     path = sqlite_url_file(text)
-    return path if path is not None else Path.cwd() / "asa_study.db"
+    if path is not None:
+        return path
+    return Path.cwd() / f"{server_database_name(text)}.db"
+
+
+def is_server(db: str | Path) -> bool:
+    """Whether ``db`` names a server database (a URL of a backend other than SQLite)."""
+    return is_url(str(db)) and not database_url(db).startswith("sqlite:")
+
+
+def server_database_name(url: str) -> str:
+    """The database name of a server URL as a plain file name (``asa_study`` without
+    one; characters other than letters, digits, ``-``, ``_`` and ``.`` become ``_``)."""
+    from sqlalchemy.engine import make_url
+
+    try:
+        name = make_url(database_url(url)).database or ""
+    except ArgumentError:
+        name = ""
+    name = re.sub(r"[^A-Za-z0-9._-]", "_", name).strip(".")
+    return name or "asa_study"
 
 
 def _sqlite_pragmas(
@@ -424,8 +481,10 @@ def _add_tables(engine: Engine, *, sqlite: bool) -> None:
 
 
 def _open_server(db: str | Path, url: str, create: bool) -> Engine:
-    """A server database (any SQLAlchemy URL but SQLite); an empty one is a new study."""
-    engine = create_engine(url)
+    """A server database (any SQLAlchemy URL but SQLite); an empty one is a new study.
+    Connections are tested before use (``pool_pre_ping``: a server restart or a dropped
+    idle connection costs a reconnect, not a failed write)."""
+    engine = create_engine(url, pool_pre_ping=True)
     try:
         tables = set(inspect(engine).get_table_names())
         if tables or not create:
