@@ -10,6 +10,7 @@ import datetime as dt
 import os
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -18,6 +19,7 @@ import sqlalchemy
 from sqlalchemy.orm import Session
 
 from study.cli import main
+from study.data import server_locks
 from study.data.dbtools import check
 from study.data.storage import Study, get_study, open_database
 from study.engine.protocol import load_protocol
@@ -141,6 +143,46 @@ def test_a_session_writes_its_ticks_to_the_server(pg_url, tmp_path):
     report = check(pg_url, verify_recordings=False)
     assert report.clean, report.text()
     assert report.counts["sample"] > 100 and report.counts["trial"] == 3  # baseline, 2 main
+
+
+def test_a_session_lock_is_seen_on_the_server_and_dies_with_its_process(pg_url, tmp_path):
+    """A process holding participant P07's session lock (study/data/server_locks.py): seen
+    and named from another connection, a session for P07 is refused, and the lock is gone
+    once the holder is killed."""
+    hold = (
+        "import sys, time\n"
+        "from study.data import server_locks as L\n"
+        "with L.held(sys.argv[1], L.session_lock('P07'), wait=False):\n"
+        "    print('held', flush=True)\n"
+        "    time.sleep(120)\n"
+    )
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    child = subprocess.Popen(
+        [sys.executable, "-c", hold, pg_url], stdout=subprocess.PIPE, text=True, env=env
+    )
+    try:
+        assert child.stdout.readline().strip() == "held"
+        name = server_locks.session_lock("P07")
+        engine = sqlalchemy.create_engine(pg_url)
+        with engine.connect() as conn:
+            assert server_locks.is_held(conn, name)
+            assert server_locks.holder(conn, name).startswith(f"{child.pid} on ")
+        proto = tmp_path / "mini.toml"
+        proto.write_text(MINI)
+        with pytest.raises(ValueError, match=f"P07 is running in another process .pid {child.pid}"):
+            run_session(load_protocol(proto), "P07", pg_url, seed=1,
+                        participant=ScriptedParticipant(np.random.default_rng(1)))  # fmt: skip
+    finally:
+        child.kill()
+        child.wait()
+    deadline = time.monotonic() + 10
+    with engine.connect() as conn:
+        while server_locks.is_held(conn, name) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert not server_locks.is_held(conn, name)
+    engine.dispose()
+    with server_locks.held(pg_url, name, wait=False):
+        pass
 
 
 @pytest.mark.parametrize("backend", ["sqlite", "postgresql"])

@@ -309,6 +309,11 @@ def is_server(db: str | Path) -> bool:
     return is_url(str(db)) and not database_url(db).startswith("sqlite:")
 
 
+def is_postgresql(db: str | Path) -> bool:
+    """Whether ``db`` names a PostgreSQL database (any driver)."""
+    return is_url(str(db)) and database_url(db).startswith(("postgresql:", "postgresql+"))
+
+
 def server_database_name(url: str) -> str:
     """The database name of a server URL as a plain file name (``asa_study`` without
     one; characters other than letters, digits, ``-``, ``_`` and ``.`` become ``_``)."""

@@ -17,7 +17,7 @@ import contextlib
 import dataclasses
 import multiprocessing
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -27,7 +27,7 @@ from sqlalchemy.engine import Connection, Engine
 from sqlalchemy.orm import Session
 
 from sim.limits import MAX_PARTICIPANTS, MAX_SEED
-from study.data import identity, locks
+from study.data import identity, locks, server_locks
 from study.data.dbfile import is_url, sqlite_url_file
 from study.data.dbtools import remove_recordings_of
 from study.data.merge import merge_participant, table_rows
@@ -37,6 +37,7 @@ from study.data.storage import (
     Participant,
     database_file,
     database_url,
+    is_postgresql,
     is_server,
     open_database,
 )
@@ -216,7 +217,7 @@ def run_synthetic_study(
     def waiting(pid: str) -> None:
         say(f"{db_path.name}: another synthetic study (pid {pid}) is writing it; waiting")
 
-    with locks.held(locks.synth_lock(db_path), wait=True, on_wait=waiting):
+    with _synth_locks(db, db_path, waiting):
         engine = open_database(db if is_server(db) else db_path)
         try:
             merger = _study(engine, proto, db, codes, seed, force, work, rec, population, say)
@@ -235,6 +236,21 @@ def run_synthetic_study(
         statuses=merger.statuses,
         wall_s=time.perf_counter() - start,
     )
+
+
+@contextlib.contextmanager
+def _synth_locks(db: str | Path, db_path: Path, waiting: Callable[[str], None]) -> Iterator[None]:
+    """The synthetic study's lock file (it owns the local scratch folder) and, for a
+    PostgreSQL database, its advisory lock (one synthetic study per database, whichever
+    machine runs it); a second study waits for the first."""
+    with contextlib.ExitStack() as stack:
+        stack.enter_context(locks.held(locks.synth_lock(db_path), wait=True, on_wait=waiting))
+        if is_postgresql(db):
+            lock = server_locks.held(
+                database_url(db), server_locks.SYNTH, wait=True, on_wait=waiting
+            )
+            stack.enter_context(lock)
+        yield
 
 
 def _study(
