@@ -185,6 +185,38 @@ def test_a_session_lock_is_seen_on_the_server_and_dies_with_its_process(pg_url, 
         pass
 
 
+def _in_child(engine, out) -> None:
+    """The studies the child sees and its server connection's backend pid."""
+    with Session(engine) as s:
+        backend = s.execute(sqlalchemy.text("SELECT pg_backend_pid()")).scalar()
+        out.put((len(s.scalars(sqlalchemy.select(Study)).all()), backend))
+
+
+def test_a_forked_child_never_uses_the_parents_connection(pg_url):
+    """An engine opened before a fork: the child gets a connection of its own (the
+    parent's pooled one, whose socket both would share, is dropped in the child), and the
+    parent's connection still works afterwards."""
+    import multiprocessing
+
+    engine = open_database(pg_url)
+    with Session(engine) as s, s.begin():
+        s.add(Study(name="t", protocol_text="", protocol_sha256="0" * 64,
+                    platform_version="t", seed=0))  # fmt: skip
+        parent_pid = s.execute(sqlalchemy.text("SELECT pg_backend_pid()")).scalar()
+    ctx = multiprocessing.get_context("fork")
+    out = ctx.Queue()
+    child = ctx.Process(target=_in_child, args=(engine, out))
+    child.start()
+    child.join(30)
+    assert child.exitcode == 0
+    studies, child_backend = out.get(timeout=5)
+    assert studies == 1 and child_backend != parent_pid
+    with Session(engine) as s:
+        assert s.execute(sqlalchemy.text("SELECT pg_backend_pid()")).scalar() == parent_pid
+        assert get_study(s).name == "t"
+    engine.dispose()
+
+
 @pytest.mark.parametrize("backend", ["sqlite", "postgresql"])
 def test_timestamps_are_utc_aware_when_read_back(backend, pg_url, tmp_path):
     db = pg_url if backend == "postgresql" else str(tmp_path / "t.db")

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import datetime as dt
 import functools
+import os
 import re
 import sqlite3
 from pathlib import Path
@@ -38,7 +39,7 @@ from sqlalchemy import (
     select,
 )
 from sqlalchemy.engine import URL, Engine
-from sqlalchemy.exc import ArgumentError, DBAPIError, NoSuchModuleError
+from sqlalchemy.exc import ArgumentError, DBAPIError, DisconnectionError, NoSuchModuleError
 from sqlalchemy.orm import DeclarativeBase, Mapped, Session, mapped_column, relationship
 
 from study.data.dbfile import (
@@ -485,11 +486,32 @@ def _add_tables(engine: Engine, *, sqlite: bool) -> None:
         conn.commit()
 
 
+def _guard_fork(engine: Engine) -> None:
+    """Never hand a pooled connection to another process: one checked out in a process
+    other than the one that opened it is dropped for a new one (a forked child's copy of
+    the parent's pool), as SQLAlchemy's "Using Connection Pools with Multiprocessing or
+    os.fork()" does. The platform's own workers are spawned and open their own engines."""
+
+    def remember(_dbapi: Any, record: Any) -> None:
+        record.info["pid"] = os.getpid()
+
+    def check(_dbapi: Any, record: Any, proxy: Any) -> None:
+        if record.info.get("pid") != os.getpid():
+            record.dbapi_connection = proxy.dbapi_connection = None
+            raise DisconnectionError(
+                f"connection opened in process {record.info.get('pid')}, not this one"
+            )
+
+    event.listen(engine, "connect", remember)
+    event.listen(engine, "checkout", check)
+
+
 def _open_server(db: str | Path, url: str, create: bool) -> Engine:
     """A server database (any SQLAlchemy URL but SQLite); an empty one is a new study.
     Connections are tested before use (``pool_pre_ping``: a server restart or a dropped
     idle connection costs a reconnect, not a failed write)."""
     engine = create_engine(url, pool_pre_ping=True)
+    _guard_fork(engine)
     try:
         tables = set(inspect(engine).get_table_names())
         if tables or not create:
