@@ -32,7 +32,9 @@ from study.cli import PARTICIPANTS, SEED, WORKERS, db_option, flag_errors
     default=None,
     help="Worker processes; default the number of CPUs.",
 )
-@db_option("Study database: SQLite file or database URL (created, or continued if interrupted).")
+@db_option(
+    "Study database: a SQLite file or a SQLAlchemy URL (created, or continued if interrupted)."
+)
 @click.option(
     "--recordings",
     type=click.Path(file_okay=False, path_type=Path),

@@ -1,7 +1,8 @@
 """The study database: SQLAlchemy 2.0 ORM models, one module, versioned.
 
 Nothing else in the platform writes SQL. SQLite (one file per study, WAL mode, foreign
-keys on) by default; any SQLAlchemy URL for a server database. Tables (DESIGN.md "Data"):
+keys on) by default; PostgreSQL (psycopg 3) or any SQLAlchemy URL for a server database,
+timestamps UTC-aware on every backend. Tables (DESIGN.md "Data"):
 ``meta`` (``schema_version``), ``study`` (protocol text and SHA-256, platform version,
 seed), ``participant`` (pseudonymous code, synthetic parameters, mode order), ``session``
 (one run for a participant; a forced second session is recorded), ``trial`` (phase, mode,

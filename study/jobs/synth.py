@@ -215,7 +215,8 @@ def run_synthetic_study(
     codes = participant_codes(n)
 
     def waiting(pid: str) -> None:
-        say(f"{db_path.name}: another synthetic study (pid {pid}) is writing it; waiting")
+        name = database_url(db) if is_server(db) else db_path.name
+        say(f"{name}: another synthetic study (pid {pid}) is writing it; waiting")
 
     with _synth_locks(db, db_path, waiting):
         engine = open_database(db if is_server(db) else db_path)
