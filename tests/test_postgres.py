@@ -217,6 +217,24 @@ def test_a_forked_child_never_uses_the_parents_connection(pg_url):
     engine.dispose()
 
 
+def test_the_write_lock_holds_on_an_empty_database(pg_url):
+    """While one transaction holds the study's write lock on a database without a study
+    row, another one waits for it (here: gives up after its lock timeout)."""
+    from study.data.ledger import lock_study
+
+    engine = open_database(pg_url)
+    with Session(engine) as first, first.begin():
+        lock_study(first)
+        assert get_study(first) is None
+        with Session(engine) as second, second.begin():
+            second.execute(sqlalchemy.text("SET LOCAL lock_timeout = '300ms'"))
+            with pytest.raises(sqlalchemy.exc.OperationalError, match="lock timeout"):
+                lock_study(second)
+    with Session(engine) as third, third.begin():
+        lock_study(third)  # free again once the first has committed
+    engine.dispose()
+
+
 @pytest.mark.parametrize("backend", ["sqlite", "postgresql"])
 def test_timestamps_are_utc_aware_when_read_back(backend, pg_url, tmp_path):
     db = pg_url if backend == "postgresql" else str(tmp_path / "t.db")

@@ -19,13 +19,17 @@ from dataclasses import dataclass
 from sqlalchemy import select, text
 from sqlalchemy.orm import Session
 
-from study.data.storage import OrderSlot, Participant, SessionRow, Study, utc_now
+from study.data.storage import (
+    PG_STUDY_LOCK,
+    OrderSlot,
+    Participant,
+    SessionRow,
+    Study,
+    utc_now,
+)
 
 RowOf = Callable[[int], int]  # slot -> counterbalancing row (participant.order_index)
 _SEARCH = 1000  # slots searched beyond the last issued one when backfilling a row
-# the advisory lock key of a study database's write lock on PostgreSQL (one study per
-# database, so one key; "asa-study" in ASCII, as a bigint)
-PG_STUDY_LOCK = int.from_bytes(b"asastudy", "big") & 0x7FFF_FFFF_FFFF_FFFF
 
 
 def lock_study(s: Session) -> None:

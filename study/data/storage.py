@@ -38,6 +38,7 @@ from sqlalchemy import (
     event,
     inspect,
     select,
+    text,
 )
 from sqlalchemy.engine import URL, Engine
 from sqlalchemy.exc import ArgumentError, DBAPIError, DisconnectionError, NoSuchModuleError
@@ -53,6 +54,9 @@ from study.data.dbfile import (
 )
 
 SCHEMA_VERSION = 1
+# the advisory lock key of a study database's write lock on PostgreSQL (one study per
+# database, so one key: "asastudy" in ASCII as a bigint; study.data.ledger.lock_study)
+PG_STUDY_LOCK = int.from_bytes(b"asastudy", "big") & 0x7FFF_FFFF_FFFF_FFFF
 BUSY_TIMEOUT_MS = 30_000  # [ms] wait for another process's write lock
 
 TRIAL_PHASES = ("training", "practice", "baseline", "main")
@@ -474,11 +478,14 @@ def _new_sqlite(path: Path, *, durable: bool) -> None:
 
 
 def _add_tables(engine: Engine, *, sqlite: bool) -> None:
-    """Create the missing tables and stamp the schema version in one transaction (for
-    SQLite under the write lock, ``BEGIN IMMEDIATE``, so concurrent openers wait)."""
+    """Create the missing tables and stamp the schema version in one transaction under
+    the database's write lock (SQLite ``BEGIN IMMEDIATE``, PostgreSQL the study's
+    advisory lock), so concurrent openers wait and then find the tables made."""
     with engine.connect() as conn:
         if sqlite:
             conn.exec_driver_sql("BEGIN IMMEDIATE")
+        elif conn.dialect.name == "postgresql":
+            conn.execute(text("SELECT pg_advisory_xact_lock(:key)"), {"key": PG_STUDY_LOCK})
         Base.metadata.create_all(conn)
         if conn.execute(select(Meta.value).where(Meta.key == "schema_version")).first() is None:
             conn.execute(
