@@ -113,8 +113,11 @@ def test_a_synthetic_study_on_postgres_as_on_sqlite(pg_url, tmp_path, capsys, mo
     pg, sqlite = _csv_rows(tmp_path / "pg"), _csv_rows(tmp_path / "lite")
     assert {k: len(v) for k, v in pg.items()} == {k: len(v) for k, v in sqlite.items()}
     assert len(pg["sample"]) > 100 and len(pg["participant"]) == 3  # with the header row
-    # the per-tick rows went through the server unchanged (same ids, same values)
+    # the per-tick rows went through the server unchanged (same ids, same values), and so
+    # did every other row but where and when (asa db diff)
     assert pg["sample"] == sqlite["sample"]
+    code, out, err = asa(capsys, "db", "diff", pg_url, str(lite))
+    assert code == 0 and "identical" in out, out + err
 
     code, _, err = asa(capsys, "report", "--db", pg_url, "--out", str(tmp_path / "report"))
     assert code == 0, err
