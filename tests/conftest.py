@@ -24,3 +24,24 @@ def seed() -> int:
 @pytest.fixture
 def rng(seed: int) -> np.random.Generator:
     return np.random.default_rng(seed)
+
+
+@pytest.fixture(scope="session")
+def pg_server():
+    """A PostgreSQL server for the whole run (tests/pg_server.py); fails, never skips,
+    when the binaries are missing."""
+    import pg_server as pg
+
+    try:
+        pg.bin_folder()
+    except RuntimeError as error:
+        pytest.fail(str(error), pytrace=False)
+    with pg.running() as server:
+        yield server
+
+
+@pytest.fixture
+def pg_url(pg_server) -> str:
+    """The URL of a fresh, empty database on the session's PostgreSQL server
+    (``postgresql+psycopg://asa@127.0.0.1:<port>/t_<n>``)."""
+    return pg_server.new_database()

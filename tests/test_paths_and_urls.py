@@ -74,7 +74,11 @@ def study_db(tmp_path: Path, seed: int) -> Path:
 
 def test_urls_are_taken_as_written_and_paths_become_sqlite_urls(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    assert database_url("postgresql://host/db") == "postgresql://host/db"
+    assert database_url("postgresql+psycopg://host/db") == "postgresql+psycopg://host/db"
+    # a PostgreSQL URL without a driver gets psycopg 3 (issue 24)
+    assert database_url("postgresql://u@host:5433/db") == "postgresql+psycopg://u@host:5433/db"
+    assert database_url("postgres://host/db") == "postgresql+psycopg://host/db"
+    assert database_url("postgresql+pg8000://host/db") == "postgresql+pg8000://host/db"
     assert database_url("x.db") == f"sqlite:///{tmp_path / 'x.db'}"
     assert database_file("sqlite:///x.db") == tmp_path / "x.db"
     assert database_file("sqlite:////abs/y.db") == Path("/abs/y.db")
@@ -94,7 +98,7 @@ def test_a_sqlite_url_opens_the_file_not_a_folder(tmp_path, monkeypatch, capsys)
 @pytest.mark.parametrize(
     ("url", "says"),
     [
-        ("postgresql://host/db", "driver"),
+        ("postgresql+pg8000://host/db", "driver"),
         ("mysql://user@host/db", "driver"),
         ("nosuchdb://host/db", "not a database URL"),
     ],

@@ -186,9 +186,9 @@ def test_bad_options_are_refused(tmp_path, field, kwargs):
     assert not (tmp_path / "x.db").exists()
 
 
-def test_a_database_url_or_another_protocol_is_refused(tmp_path):
+def test_an_in_memory_database_or_another_protocol_is_refused(tmp_path):
     with pytest.raises(ValueError, match="^db: "):
-        run_synthetic_study("pilot", "sqlite:///x.db", participants=1, seed=0)
+        run_synthetic_study("pilot", "sqlite://", participants=1, seed=0)
     db = tmp_path / "other.db"
     engine = open_database(db)
     with Session(engine) as s, s.begin():

@@ -32,12 +32,15 @@ from study.cli import PARTICIPANTS, SEED, WORKERS, db_option, flag_errors
     default=None,
     help="Worker processes; default the number of CPUs.",
 )
-@db_option("Study database (SQLite file; created, or continued if interrupted).")
+@db_option(
+    "Study database: a SQLite file or a SQLAlchemy URL (created, or continued if interrupted)."
+)
 @click.option(
     "--recordings",
     type=click.Path(file_okay=False, path_type=Path),
     default=None,
-    help="Folder for the rerun recordings; default <db stem>_recordings beside the database.",
+    help="Folder for the rerun recordings; default <db stem>_recordings beside the database "
+    "(for a database URL: <database name>_recordings in the working folder).",
 )
 @click.option(
     "--no-recordings",

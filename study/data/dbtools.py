@@ -31,7 +31,7 @@ from sqlalchemy import JSON, func, inspect, select
 from sqlalchemy.orm import Session
 
 from questionnaires import nasa_tlx
-from study.data import locks
+from study.data import locks, server_locks
 from study.data.rrd import verify_many
 from study.data.storage import (
     TRIAL_FINISHED,
@@ -47,6 +47,7 @@ from study.data.storage import (
     database_file,
     database_url,
     get_study,
+    is_postgresql,
     open_database,
 )
 
@@ -223,7 +224,7 @@ def _check_people(s: Session, db: str | Path, protocol: Any, problems: list[str]
         if person is None:
             continue  # an orphan, reported by _orphans
         if row.status == "running":  # a trial running elsewhere: see check()
-            if _live(db, person.code):
+            if _live(s, db, person.code):
                 live += 1
                 continue
             problems.append(
@@ -246,11 +247,23 @@ def _experience(protocol: Any) -> str:
     return phase.instrument if phase is not None else ""
 
 
-def _live(db: str | Path, code: str) -> bool:
-    """True when a process holds participant ``code``'s session lock (SQLite only)."""
+def _live(s: Session, db: str | Path, code: str) -> bool:
+    """True when a process holds participant ``code``'s session lock (a lock file beside
+    an SQLite file, an advisory lock on PostgreSQL; never on other servers)."""
+    if is_postgresql(db):
+        return server_locks.is_held(s.connection(), server_locks.session_lock(code))
     if not database_url(db).startswith("sqlite:///"):
         return False
     return locks.is_held(locks.session_lock(database_file(db), code))
+
+
+def _synth_live(s: Session, db: str | Path) -> bool:
+    """True when a synthetic study is writing the database (its lock is held)."""
+    if is_postgresql(db):
+        return server_locks.is_held(s.connection(), server_locks.SYNTH)
+    if not database_url(db).startswith("sqlite:///"):
+        return False
+    return locks.is_held(locks.synth_lock(database_file(db)))
 
 
 def _check_ledger(
@@ -268,9 +281,7 @@ def _check_ledger(
     orders = SlotOrders(protocol.modes, protocol.counterbalancing, study.seed) if protocol else None
     holders: dict[int, int] = {}
     released = {h.get("participant_id") for r in rows for h in r.released}
-    synth_live = database_url(db).startswith("sqlite:///") and locks.is_held(
-        locks.synth_lock(database_file(db))
-    )
+    synth_live = _synth_live(s, db)
     for r in rows:
         where = f"order slot {r.slot}"
         if r.status == "reserved":

@@ -16,10 +16,17 @@ import re
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from sqlalchemy import select
+from sqlalchemy import select, text
 from sqlalchemy.orm import Session
 
-from study.data.storage import OrderSlot, Participant, SessionRow, Study, utc_now
+from study.data.storage import (
+    PG_STUDY_LOCK,
+    OrderSlot,
+    Participant,
+    SessionRow,
+    Study,
+    utc_now,
+)
 
 RowOf = Callable[[int], int]  # slot -> counterbalancing row (participant.order_index)
 _SEARCH = 1000  # slots searched beyond the last issued one when backfilling a row
@@ -28,11 +35,16 @@ _SEARCH = 1000  # slots searched beyond the last issued one when backfilling a r
 def lock_study(s: Session) -> None:
     """Take the study database's write lock for the transaction begun on ``s``; call it
     first in the transaction. SQLite: ``BEGIN IMMEDIATE`` (other writers wait, up to the
-    busy timeout, instead of failing when they upgrade a read). Other databases: the study
-    row ``SELECT ... FOR UPDATE`` (the multi-site allocation of issue 24 builds on this)."""
+    busy timeout, instead of failing when they upgrade a read). PostgreSQL: a
+    transaction-level advisory lock (:data:`PG_STUDY_LOCK`, released at commit or
+    rollback), which also serialises the first writers of an empty database, where a
+    ``SELECT ... FOR UPDATE`` of the study row would lock nothing. Other databases: the
+    study row ``SELECT ... FOR UPDATE``."""
     conn = s.connection()
     if conn.dialect.name == "sqlite":
         conn.exec_driver_sql("BEGIN IMMEDIATE")
+    elif conn.dialect.name == "postgresql":
+        s.execute(text("SELECT pg_advisory_xact_lock(:key)"), {"key": PG_STUDY_LOCK})
     else:
         s.execute(select(Study.id).with_for_update())
 

@@ -29,9 +29,10 @@ WAIT_POLL_S = 0.2  # [s] between attempts while waiting for a lock
 
 
 class LockHeld(BlockingIOError):
-    """The lock is held by another process (its pid in ``pid``)."""
+    """The lock (a file, or a server lock's name) is held by another process (its pid in
+    ``pid``)."""
 
-    def __init__(self, path: Path, pid: str) -> None:
+    def __init__(self, path: Path | str, pid: str) -> None:
         super().__init__(f"{path} is held by pid {pid}")
         self.path, self.pid = path, pid
 

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from sqlalchemy import select
+from sqlalchemy import Boolean, select
 from sqlalchemy.engine import Connection, Engine
 from sqlalchemy.orm import Session
 
@@ -62,9 +62,14 @@ def _copy_samples(
     conn: Connection, samples: list[tuple[Any, ...]], trial_ids: dict[int, int]
 ) -> None:
     """Insert ``samples`` (from :func:`_sample_tuples`) with their trial ids remapped; the
-    stored values are those of the source rows (SQLite's own types, unconverted)."""
+    stored values are those of the source rows (SQLite's own types, unconverted). Into a
+    server database the rows go through the table's types (SQLite's 0/1 become booleans)
+    as executemany-style ``insert()`` batches (SQLAlchemy's insertmanyvalues)."""
     names = _sample_columns()
     at = names.index("trial_id")
+    if conn.dialect.name != "sqlite":
+        _copy_samples_typed(conn, samples, trial_ids)
+        return
     columns = ", ".join(f'"{c}"' for c in names)
     marks = ", ".join("?" * len(names))
     sql = f"INSERT INTO sample ({columns}) VALUES ({marks})"
@@ -72,6 +77,27 @@ def _copy_samples(
         chunk = [(*r[:at], trial_ids[r[at]], *r[at + 1 :]) for r in samples[i : i + _CHUNK]]
         if chunk:
             conn.exec_driver_sql(sql, chunk)
+
+
+def _copy_samples_typed(
+    conn: Connection, samples: list[tuple[Any, ...]], trial_ids: dict[int, int]
+) -> None:
+    """:func:`_copy_samples` into a server database: SQLite's 0/1 made booleans, the rows
+    inserted through the table as executemany-style batches (insertmanyvalues)."""
+    table = Base.metadata.tables["sample"]
+    names = _sample_columns()
+    flags = [i for i, n in enumerate(names) if isinstance(table.c[n].type, Boolean)]
+    at = names.index("trial_id")
+    for i in range(0, len(samples), _CHUNK):
+        chunk = []
+        for r in samples[i : i + _CHUNK]:
+            values = list(r)
+            values[at] = trial_ids[r[at]]
+            for k in flags:
+                values[k] = None if values[k] is None else bool(values[k])
+            chunk.append(dict(zip(names, values, strict=True)))
+        if chunk:
+            conn.execute(table.insert(), chunk)
 
 
 @dataclass(frozen=True, slots=True)

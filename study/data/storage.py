@@ -1,7 +1,8 @@
 """The study database: SQLAlchemy 2.0 ORM models, one module, versioned.
 
 Nothing else in the platform writes SQL. SQLite (one file per study, WAL mode, foreign
-keys on) by default; any SQLAlchemy URL for a server database. Tables (DESIGN.md "Data"):
+keys on) by default; PostgreSQL (psycopg 3) or any SQLAlchemy URL for a server database,
+timestamps UTC-aware on every backend. Tables (DESIGN.md "Data"):
 ``meta`` (``schema_version``), ``study`` (protocol text and SHA-256, platform version,
 seed), ``participant`` (pseudonymous code, synthetic parameters, mode order), ``session``
 (one run for a participant; a forced second session is recorded), ``trial`` (phase, mode,
@@ -15,6 +16,8 @@ from __future__ import annotations
 
 import datetime as dt
 import functools
+import os
+import re
 import sqlite3
 from pathlib import Path
 from typing import Any
@@ -29,14 +32,16 @@ from sqlalchemy import (
     Integer,
     String,
     Text,
+    TypeDecorator,
     UniqueConstraint,
     create_engine,
     event,
     inspect,
     select,
+    text,
 )
 from sqlalchemy.engine import URL, Engine
-from sqlalchemy.exc import ArgumentError, DBAPIError, NoSuchModuleError
+from sqlalchemy.exc import ArgumentError, DBAPIError, DisconnectionError, NoSuchModuleError
 from sqlalchemy.orm import DeclarativeBase, Mapped, Session, mapped_column, relationship
 
 from study.data.dbfile import (
@@ -49,6 +54,9 @@ from study.data.dbfile import (
 )
 
 SCHEMA_VERSION = 1
+# the advisory lock key of a study database's write lock on PostgreSQL (one study per
+# database, so one key: "asastudy" in ASCII as a bigint; study.data.ledger.lock_study)
+PG_STUDY_LOCK = int.from_bytes(b"asastudy", "big") & 0x7FFF_FFFF_FFFF_FFFF
 BUSY_TIMEOUT_MS = 30_000  # [ms] wait for another process's write lock
 
 TRIAL_PHASES = ("training", "practice", "baseline", "main")
@@ -69,8 +77,34 @@ def utc_now() -> dt.datetime:
     return dt.datetime.now(dt.UTC)
 
 
+class UTCDateTime(TypeDecorator[dt.datetime]):
+    """A timestamp stored as UTC and read back timezone-aware UTC on every backend.
+
+    SQLite keeps no zone (SQLAlchemy writes the wall-clock digits and reads them back
+    naive) and PostgreSQL's ``timestamptz`` answers in the connection's time zone; so
+    values are converted to UTC on the way in (a naive one is taken as UTC) and marked
+    or converted to UTC on the way out. On SQLite the stored text is as before.
+    """
+
+    impl = DateTime(timezone=True)
+    cache_ok = True
+
+    def process_bind_param(self, value: dt.datetime | None, dialect: Any) -> dt.datetime | None:
+        if value is None or value.tzinfo is None:
+            return value
+        value = value.astimezone(dt.UTC)
+        return value.replace(tzinfo=None) if dialect.name == "sqlite" else value
+
+    def process_result_value(self, value: dt.datetime | None, dialect: Any) -> dt.datetime | None:
+        if value is None:
+            return None
+        if value.tzinfo is None:
+            return value.replace(tzinfo=dt.UTC)
+        return value.astimezone(dt.UTC)
+
+
 class Base(DeclarativeBase):
-    type_annotation_map = {dict[str, Any]: JSON, list[Any]: JSON}
+    type_annotation_map = {dict[str, Any]: JSON, list[Any]: JSON, dt.datetime: UTCDateTime}
 
 
 class Meta(Base):
@@ -87,7 +121,7 @@ class Study(Base):
     protocol_sha256: Mapped[str] = mapped_column(String(64))
     platform_version: Mapped[str] = mapped_column(String(64))
     seed: Mapped[int] = mapped_column(Integer)
-    created_at: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True), default=utc_now)
+    created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utc_now)
 
     participants: Mapped[list[Participant]] = relationship(back_populates="study")
 
@@ -105,7 +139,7 @@ class Participant(Base):
         default=list
     )  # e.g. ["manual", "reactive_bn", ...]
     seed: Mapped[int] = mapped_column(Integer)
-    created_at: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True), default=utc_now)
+    created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utc_now)
 
     study: Mapped[Study] = relationship(back_populates="participants")
     sessions: Mapped[list[SessionRow]] = relationship(back_populates="participant")
@@ -119,8 +153,8 @@ class SessionRow(Base):
     __tablename__ = "session"
     id: Mapped[int] = mapped_column(primary_key=True)
     participant_id: Mapped[int] = mapped_column(ForeignKey("participant.id"))
-    started_at: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True), default=utc_now)
-    ended_at: Mapped[dt.datetime | None] = mapped_column(DateTime(timezone=True))
+    started_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utc_now)
+    ended_at: Mapped[dt.datetime | None] = mapped_column(UTCDateTime)
     status: Mapped[str] = mapped_column(String(16), default="running")  # running/completed/aborted
     resumed: Mapped[bool] = mapped_column(Boolean, default=False)
     forced: Mapped[bool] = mapped_column(Boolean, default=False)
@@ -142,8 +176,8 @@ class Trial(Base):
     scenario: Mapped[str] = mapped_column(String(200))
     seed: Mapped[int] = mapped_column(Integer)
     status: Mapped[str] = mapped_column(String(16), default="running")  # TRIAL_STATUSES
-    started_at: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True), default=utc_now)
-    ended_at: Mapped[dt.datetime | None] = mapped_column(DateTime(timezone=True))
+    started_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utc_now)
+    ended_at: Mapped[dt.datetime | None] = mapped_column(UTCDateTime)
     # outcome, set in the completing transaction
     completed_task: Mapped[bool | None] = mapped_column(Boolean)  # False on timeout
     completion_time_s: Mapped[float | None] = mapped_column(Float)
@@ -193,7 +227,7 @@ class Event(Base):
     t: Mapped[float] = mapped_column(Float)  # [s] trial time (session time outside trials)
     kind: Mapped[str] = mapped_column(String(32))
     detail: Mapped[dict[str, Any]] = mapped_column(default=dict)
-    created_at: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True), default=utc_now)
+    created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utc_now)
 
 
 class Question(Base):
@@ -222,7 +256,7 @@ class Response(Base):
     item: Mapped[str] = mapped_column(String(64))
     value: Mapped[float | None] = mapped_column(Float)
     text: Mapped[str] = mapped_column(Text, default="")
-    created_at: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True), default=utc_now)
+    created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utc_now)
 
 
 class OrderSlot(Base):
@@ -240,29 +274,63 @@ class OrderSlot(Base):
     status: Mapped[str] = mapped_column(String(16), default="issued")  # SLOT_STATUSES
     # earlier holders released by exclusion: [{"code", "participant_id", "released_at"}]
     released: Mapped[list[Any]] = mapped_column(default=list)
-    created_at: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True), default=utc_now)
+    created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utc_now)
 
 
 # ------------------------------------------------------------------------- engine
 
 
+# URL schemes without a driver, and the driver the platform uses for them
+_DEFAULT_DRIVERS = {"postgresql": "postgresql+psycopg", "postgres": "postgresql+psycopg"}
+
+
 def database_url(db: str | Path) -> str:
     """``db`` as a SQLAlchemy URL: text of the form ``scheme://...`` is taken as written
-    (``sqlite:///x.db``, ``postgresql://host/study``); anything else is a file path and
-    becomes ``sqlite:///<absolute path>``."""
+    (``sqlite:///x.db``, ``postgresql+psycopg://user@host/study``), except that
+    ``postgresql://`` and ``postgres://`` get the psycopg 3 driver; anything else is a
+    file path and becomes ``sqlite:///<absolute path>``."""
     text = str(db)
-    return text if is_url(text) else f"sqlite:///{Path(text).resolve()}"
+    if not is_url(text):
+        return f"sqlite:///{Path(text).resolve()}"
+    scheme, rest = text.split("://", 1)
+    return f"{_DEFAULT_DRIVERS.get(scheme.lower(), scheme)}://{rest}"
 
 
 def database_file(db: str | Path) -> Path:
-    """The SQLite file of ``db`` (a path or a ``sqlite://`` URL), absolute; for other
-    databases a stand-in path in the working folder whose parent and stem name the
-    recordings folder."""
+    """The SQLite file of ``db`` (a path or a ``sqlite://`` URL), absolute; for a server
+    database a stand-in ``<working folder>/<database name>.db`` (never made), whose parent
+    and stem name the local folders beside it: recordings, a synthetic study's scratch
+    files and lock files (docs/decisions.md, "PostgreSQL")."""
     text = str(db)
     if not is_url(text):
         return Path(text).resolve()
     path = sqlite_url_file(text)
-    return path if path is not None else Path.cwd() / "asa_study.db"
+    if path is not None:
+        return path
+    return Path.cwd() / f"{server_database_name(text)}.db"
+
+
+def is_server(db: str | Path) -> bool:
+    """Whether ``db`` names a server database (a URL of a backend other than SQLite)."""
+    return is_url(str(db)) and not database_url(db).startswith("sqlite:")
+
+
+def is_postgresql(db: str | Path) -> bool:
+    """Whether ``db`` names a PostgreSQL database (any driver)."""
+    return is_url(str(db)) and database_url(db).startswith(("postgresql:", "postgresql+"))
+
+
+def server_database_name(url: str) -> str:
+    """The database name of a server URL as a plain file name (``asa_study`` without
+    one; characters other than letters, digits, ``-``, ``_`` and ``.`` become ``_``)."""
+    from sqlalchemy.engine import make_url
+
+    try:
+        name = make_url(database_url(url)).database or ""
+    except ArgumentError:
+        name = ""
+    name = re.sub(r"[^A-Za-z0-9._-]", "_", name).strip(".")
+    return name or "asa_study"
 
 
 def _sqlite_pragmas(
@@ -410,11 +478,14 @@ def _new_sqlite(path: Path, *, durable: bool) -> None:
 
 
 def _add_tables(engine: Engine, *, sqlite: bool) -> None:
-    """Create the missing tables and stamp the schema version in one transaction (for
-    SQLite under the write lock, ``BEGIN IMMEDIATE``, so concurrent openers wait)."""
+    """Create the missing tables and stamp the schema version in one transaction under
+    the database's write lock (SQLite ``BEGIN IMMEDIATE``, PostgreSQL the study's
+    advisory lock), so concurrent openers wait and then find the tables made."""
     with engine.connect() as conn:
         if sqlite:
             conn.exec_driver_sql("BEGIN IMMEDIATE")
+        elif conn.dialect.name == "postgresql":
+            conn.execute(text("SELECT pg_advisory_xact_lock(:key)"), {"key": PG_STUDY_LOCK})
         Base.metadata.create_all(conn)
         if conn.execute(select(Meta.value).where(Meta.key == "schema_version")).first() is None:
             conn.execute(
@@ -423,9 +494,32 @@ def _add_tables(engine: Engine, *, sqlite: bool) -> None:
         conn.commit()
 
 
+def _guard_fork(engine: Engine) -> None:
+    """Never hand a pooled connection to another process: one checked out in a process
+    other than the one that opened it is dropped for a new one (a forked child's copy of
+    the parent's pool), as SQLAlchemy's "Using Connection Pools with Multiprocessing or
+    os.fork()" does. The platform's own workers are spawned and open their own engines."""
+
+    def remember(_dbapi: Any, record: Any) -> None:
+        record.info["pid"] = os.getpid()
+
+    def check(_dbapi: Any, record: Any, proxy: Any) -> None:
+        if record.info.get("pid") != os.getpid():
+            record.dbapi_connection = proxy.dbapi_connection = None
+            raise DisconnectionError(
+                f"connection opened in process {record.info.get('pid')}, not this one"
+            )
+
+    event.listen(engine, "connect", remember)
+    event.listen(engine, "checkout", check)
+
+
 def _open_server(db: str | Path, url: str, create: bool) -> Engine:
-    """A server database (any SQLAlchemy URL but SQLite); an empty one is a new study."""
-    engine = create_engine(url)
+    """A server database (any SQLAlchemy URL but SQLite); an empty one is a new study.
+    Connections are tested before use (``pool_pre_ping``: a server restart or a dropped
+    idle connection costs a reconnect, not a failed write)."""
+    engine = create_engine(url, pool_pre_ping=True)
+    _guard_fork(engine)
     try:
         tables = set(inspect(engine).get_table_names())
         if tables or not create:

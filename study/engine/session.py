@@ -14,10 +14,11 @@ from pathlib import Path
 
 from sqlalchemy import select
 from sqlalchemy.engine import Engine
+from sqlalchemy.exc import ArgumentError, DBAPIError
 from sqlalchemy.orm import Session
 
 from study import __version__
-from study.data import identity, ledger, locks
+from study.data import identity, ledger, locks, server_locks
 from study.data.storage import (
     Event,
     OrderSlot,
@@ -28,6 +29,7 @@ from study.data.storage import (
     database_file,
     database_url,
     get_study,
+    is_postgresql,
     open_database,
     utc_now,
 )
@@ -233,18 +235,26 @@ def _not_reserved_elsewhere(
 ) -> None:
     """Refuse a code whose slot a running synthetic study has reserved (it will merge that
     participant); an interrupted study's reservation is taken up instead."""
-    if slot is not None or not database_url(db).startswith("sqlite:///"):
+    if slot is not None or not (is_postgresql(db) or database_url(db).startswith("sqlite:///")):
         return
     reserved = s.scalars(
         select(OrderSlot).where(
             OrderSlot.study_id == study.id, OrderSlot.code == code, OrderSlot.status == "reserved"
         )
     ).first()
-    lock = locks.synth_lock(database_file(db))
-    if reserved is not None and locks.is_held(lock):
+    if reserved is None:
+        return
+    if is_postgresql(db):
+        conn = s.connection()
+        live = server_locks.is_held(conn, server_locks.SYNTH)
+        pid = server_locks.holder(conn, server_locks.SYNTH) if live else ""
+    else:
+        lock = locks.synth_lock(database_file(db))
+        live, pid = locks.is_held(lock), locks.holder(lock)
+    if live:
         raise ValueError(
             f"{db}: field 'participant.code': {code} is a participant of the synthetic study "
-            f"running on this database (pid {locks.holder(lock)}); choose another code"
+            f"running on this database (pid {pid}); choose another code"
         )
 
 
@@ -445,24 +455,34 @@ def _camera_hz(protocol: Protocol, participant: SessionParticipant) -> float:
 
 @contextlib.contextmanager
 def _session_lock(db: str | Path, code: str, lock: bool) -> Iterator[None]:
-    """Hold participant ``code``'s session lock file (SQLite files only; see
-    :mod:`study.data.locks`); another process holding it is refused with one line. Where
-    no lock file can be made (no folder, read-only) the session runs without one, and
-    opening the database says what is wrong."""
-    path = locks.session_lock(database_file(db), code)
+    """Hold participant ``code``'s session lock: a lock file beside an SQLite file
+    (:mod:`study.data.locks`), an advisory lock on a server database
+    (:mod:`study.data.server_locks`); another process holding it is refused with one
+    line. Where no lock can be taken (no folder, read-only, a server that cannot be
+    reached) the session runs without one, and opening the database says what is wrong."""
     stack = contextlib.ExitStack()
-    if lock and database_url(db).startswith("sqlite:///") and path.parent.parent.is_dir():
+    if lock:
         try:
-            stack.enter_context(locks.held(path, wait=False))
+            _take_session_lock(stack, db, code)
         except locks.LockHeld as held:
             raise ValueError(
                 f"{db}: field 'participant.code': the session of participant {code} is "
                 f"running in another process (pid {held.pid}); wait for it to end or stop it"
             ) from None
-        except OSError:
+        except (OSError, DBAPIError, ArgumentError, ImportError):
             pass
     with stack:
         yield
+
+
+def _take_session_lock(stack: contextlib.ExitStack, db: str | Path, code: str) -> None:
+    if is_postgresql(db):
+        name = server_locks.session_lock(code)
+        stack.enter_context(server_locks.held(database_url(db), name, wait=False))
+        return
+    path = locks.session_lock(database_file(db), code)
+    if database_url(db).startswith("sqlite:///") and path.parent.parent.is_dir():
+        stack.enter_context(locks.held(path, wait=False))
 
 
 def _run_locked(

@@ -17,7 +17,7 @@ import contextlib
 import dataclasses
 import multiprocessing
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -27,10 +27,20 @@ from sqlalchemy.engine import Connection, Engine
 from sqlalchemy.orm import Session
 
 from sim.limits import MAX_PARTICIPANTS, MAX_SEED
-from study.data import identity, locks
+from study.data import identity, locks, server_locks
+from study.data.dbfile import is_url, sqlite_url_file
 from study.data.dbtools import remove_recordings_of
 from study.data.merge import merge_participant, table_rows
-from study.data.storage import TRIAL_FINISHED, Base, Participant, open_database
+from study.data.storage import (
+    TRIAL_FINISHED,
+    Base,
+    Participant,
+    database_file,
+    database_url,
+    is_postgresql,
+    is_server,
+    open_database,
+)
 from study.engine.protocol import Protocol, load_protocol
 from study.engine.recognition import RecognitionTally
 from study.engine.session import derive_seed, reserve_slots, run_session
@@ -41,7 +51,7 @@ from study.participants.synthetic import Population, SyntheticParticipant
 class SynthSummary:
     """What :func:`run_synthetic_study` did."""
 
-    db: Path
+    db: Path | str  # the database file, or a server database's URL
     codes: tuple[str, ...]  # every participant of the study, in order
     run: tuple[str, ...]  # participants run and merged by this call
     skipped: tuple[str, ...]  # already in the database
@@ -136,8 +146,8 @@ def _check_options(
     n = _check_int(participants, "participants", 1, MAX_PARTICIPANTS)
     seed = _check_int(seed, "seed", 0, MAX_SEED)
     workers = _check_int(workers, "workers", 1, 1024)
-    if "://" in str(db):
-        raise ValueError(f"db: a SQLite file path is needed for synthetic studies, got {db}")
+    if is_url(str(db)) and not is_server(db) and sqlite_url_file(database_url(db)) is None:
+        raise ValueError(f"db: an in-memory database cannot hold a synthetic study, got {db}")
     return n, seed, workers
 
 
@@ -162,7 +172,8 @@ def run_synthetic_study(
         A loaded protocol or a shipped name / TOML file
         (:func:`study.engine.protocol.load_protocol`).
     db : str or Path
-        SQLite file (created if missing; participants already in it are skipped).
+        SQLite file (created if missing) or a database URL (a server database, empty or
+        of this study); participants already in it are skipped.
     participants : int
         How many (codes ``P01`` .. ``PNN``), at least 1.
     seed : int
@@ -192,7 +203,7 @@ def run_synthetic_study(
     Raises
     ------
     ValueError
-        Bad parameters (naming them), a database URL instead of a file, a database of
+        Bad parameters (naming them), an in-memory database URL, a database of
         another protocol, seed or platform version without ``force``.
     """
     start = time.perf_counter()
@@ -204,10 +215,11 @@ def run_synthetic_study(
     codes = participant_codes(n)
 
     def waiting(pid: str) -> None:
-        say(f"{db_path.name}: another synthetic study (pid {pid}) is writing it; waiting")
+        name = database_url(db) if is_server(db) else db_path.name
+        say(f"{name}: another synthetic study (pid {pid}) is writing it; waiting")
 
-    with locks.held(locks.synth_lock(db_path), wait=True, on_wait=waiting):
-        engine = open_database(db_path)
+    with _synth_locks(db, db_path, waiting):
+        engine = open_database(db if is_server(db) else db_path)
         try:
             merger = _study(engine, proto, db, codes, seed, force, work, rec, population, say)
             jobs = [dataclasses.replace(j, record=record) for j in merger.jobs.values()]
@@ -218,13 +230,28 @@ def run_synthetic_study(
         with contextlib.suppress(OSError):
             work.rmdir()
     return SynthSummary(
-        db=db_path,
+        db=database_url(db) if is_server(db) else db_path,
         codes=codes,
         run=tuple(j.code for j in merger.jobs.values()),
         skipped=merger.skipped_codes,
         statuses=merger.statuses,
         wall_s=time.perf_counter() - start,
     )
+
+
+@contextlib.contextmanager
+def _synth_locks(db: str | Path, db_path: Path, waiting: Callable[[str], None]) -> Iterator[None]:
+    """The synthetic study's lock file (it owns the local scratch folder) and, for a
+    PostgreSQL database, its advisory lock (one synthetic study per database, whichever
+    machine runs it); a second study waits for the first."""
+    with contextlib.ExitStack() as stack:
+        stack.enter_context(locks.held(locks.synth_lock(db_path), wait=True, on_wait=waiting))
+        if is_postgresql(db):
+            lock = server_locks.held(
+                database_url(db), server_locks.SYNTH, wait=True, on_wait=waiting
+            )
+            stack.enter_context(lock)
+        yield
 
 
 def _study(
@@ -310,8 +337,9 @@ def _job(
 
 def _paths(db: str | Path, recordings: str | Path | None) -> tuple[Path, Path, Path]:
     """The database file, the folder of the temporary files and the recordings folder
-    (the database's folder is created)."""
-    db_path = Path(db).resolve()
+    (the database's folder is created). For a server database the local folders are
+    those beside its stand-in file (:func:`study.data.storage.database_file`)."""
+    db_path = database_file(db)
     if db_path.exists() and db_path.is_dir():
         raise ValueError(f"db: {db} is a folder; give a database file")
     folder = db_path.parent
