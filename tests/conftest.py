@@ -28,9 +28,9 @@ def rng(seed: int) -> np.random.Generator:
 
 @pytest.fixture(scope="session")
 def pg_server():
-    """A PostgreSQL server for the whole run (tests/pg_server.py); fails, never skips,
+    """A PostgreSQL server for the whole run (study/data/pg_local.py); fails, never skips,
     when the binaries are missing."""
-    import pg_server as pg
+    from study.data import pg_local as pg
 
     try:
         pg.bin_folder()

@@ -1,7 +1,7 @@
 """PostgreSQL as a study database (issue 24): a synthetic study written through ``asa
 synth --db URL`` and checked, exported, reported and planned from the server as from
 SQLite; a session writing its ticks straight to the server; timestamps UTC-aware on both
-backends; a bad URL is one line and exit status 2. The server is real (tests/pg_server.py)."""
+backends; a bad URL is one line and exit status 2. The server is real (study/data/pg_local.py)."""
 
 from __future__ import annotations
 
@@ -261,7 +261,7 @@ def test_timestamps_are_utc_aware_when_read_back(backend, pg_url, tmp_path):
 
 
 def test_a_bad_url_is_one_line_and_exit_2(pg_server, tmp_path, capsys, monkeypatch):
-    import pg_server as pg
+    from study.data import pg_local as pg
 
     monkeypatch.chdir(tmp_path)
     wrong_port = f"postgresql://asa@127.0.0.1:{pg._free_port()}/nothing"

@@ -1,4 +1,4 @@
-"""A throwaway PostgreSQL server for the tests marked ``postgres`` (issue 24).
+"""A throwaway PostgreSQL server for the postgres tests and the storage benchmark (issue 24).
 
 Debian's PostgreSQL binaries (``apt-get install postgresql``; ``initdb`` and ``pg_ctl``
 from ``pg_config --bindir`` or ``/usr/lib/postgresql/<version>/bin``) make a cluster in a
