@@ -28,6 +28,7 @@ GROUPS: dict[str, str] = {
     "recognition": "study.bench.recognition",
     "scenes": "study.bench.scenes",
     "map_semantics": "study.bench.map_semantics",
+    "storage": "study.bench.storage",
     "power": "study.bench.power",
 }
 
