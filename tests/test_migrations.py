@@ -279,3 +279,32 @@ def test_a_study_older_than_some_tables_gets_them_on_upgrade(tmp_path, capsys):
     con.close()
     assert asa(capsys, "db", "upgrade", "--db", str(db))[0] == 0
     assert _differences(f"sqlite:///{db}") == set()
+
+
+def test_the_platform_knows_every_revision_shipped():
+    """``schema.REVISIONS`` (read on every opening, without importing Alembic) is the
+    chain in study/data/migrations/versions, and opening a study imports no Alembic."""
+    from alembic.script import ScriptDirectory
+
+    script = ScriptDirectory.from_config(schema.alembic_config())
+    chain = [r.revision for r in reversed(list(script.walk_revisions()))]
+    assert chain == list(schema.REVISIONS) and script.get_current_head() == schema.head()
+    assert int(schema.head()) == SCHEMA_VERSION
+
+
+def test_opening_a_study_imports_no_alembic(tmp_path):
+    import subprocess
+    import sys
+
+    db = tmp_path / "s.db"
+    open_database(db).dispose()
+    code = (
+        "import sys; from study.data.storage import open_database; "
+        f"open_database({str(db)!r}).dispose(); open_database({str(db)!r}, create=False); "
+        "print('alembic' in sys.modules)"
+    )
+    root = str(Path(__file__).resolve().parents[1])
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=root
+    )
+    assert out.stdout.strip() == "False"

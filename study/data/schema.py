@@ -12,65 +12,82 @@ migrations").
 
 from __future__ import annotations
 
-import functools
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from alembic import command
-from alembic.config import Config
-from alembic.runtime.migration import MigrationContext
-from alembic.script import ScriptDirectory
 from sqlalchemy import inspect, text
 from sqlalchemy.engine import Connection
 from sqlalchemy.schema import MetaData
 
+if TYPE_CHECKING:
+    from alembic.config import Config
+
 MIGRATIONS = Path(__file__).with_name("migrations")
+# the revisions in migrations/versions, oldest first (a test checks them against Alembic's
+# script directory): every opening reads them, and importing Alembic takes longer than
+# opening a study, so Alembic is imported only to stamp a new database or to upgrade one
+REVISIONS = ("0001", "0002")
 LEGACY_REVISION = "0001"  # a database with meta.schema_version 1 and no alembic_version
 
 
 def alembic_config(connection: Connection | None = None) -> Config:
     """Alembic's configuration, built in code, with ``connection`` for ``env.py``."""
+    from alembic.config import Config
+
     config = Config()
     config.set_main_option("script_location", str(MIGRATIONS))
     config.attributes["connection"] = connection
     return config
 
 
-@functools.cache
-def _script() -> ScriptDirectory:
-    return ScriptDirectory.from_config(alembic_config())
-
-
 def head() -> str:
     """The newest revision this platform knows."""
-    return _script().get_current_head()
+    return REVISIONS[-1]
 
 
 def revisions() -> list[str]:
     """Every revision this platform knows, oldest first."""
-    return [r.revision for r in reversed(list(_script().walk_revisions()))]
+    return list(REVISIONS)
+
+
+def _stored(conn: Connection) -> list[str]:
+    """The revisions in the database's ``alembic_version`` (none without the table)."""
+    if "alembic_version" not in inspect(conn).get_table_names():
+        return []
+    return [str(v) for v in conn.execute(text("SELECT version_num FROM alembic_version")).scalars()]
 
 
 def database_revision(conn: Connection) -> str | None:
-    """The revision of the database on ``conn``: its ``alembic_version``, else
+    """The revision of the database on ``conn``: its ``alembic_version`` (several, as
+    Alembic's branches would leave, joined with ``+``: none this platform knows), else
     :data:`LEGACY_REVISION` when ``meta.schema_version`` is 1, else None. Writes
     nothing."""
-    current = MigrationContext.configure(conn).get_current_revision()
-    if current is not None:
-        return current
+    stored = _stored(conn)
+    if stored:
+        return "+".join(sorted(stored))
     if "meta" not in inspect(conn).get_table_names():
         return None
     row = conn.execute(text("SELECT value FROM meta WHERE key = 'schema_version'")).first()
     return LEGACY_REVISION if row is not None and str(row[0]) == "1" else None
 
 
+def is_stamped(conn: Connection) -> bool:
+    """Whether the database on ``conn`` records its revision (``alembic_version``)."""
+    return bool(_stored(conn))
+
+
 def stamp_head(conn: Connection) -> None:
     """Record the head revision on a database whose tables were made by ``create_all``."""
+    from alembic import command
+
     command.stamp(alembic_config(conn), "head")
 
 
 def upgrade_to(conn: Connection, target: str) -> None:
     """Run the migrations from the database's revision to ``target`` on ``conn``, in the
     caller's transaction."""
+    from alembic import command
+
     command.upgrade(alembic_config(conn), target)
 
 
@@ -112,8 +129,3 @@ def _readable(conn: Connection, metadata: MetaData) -> bool:
             if not set(table.columns.keys()) <= columns:
                 return False
     return True
-
-
-def is_stamped(conn: Connection) -> bool:
-    """Whether the database on ``conn`` records its revision (``alembic_version``)."""
-    return MigrationContext.configure(conn).get_current_revision() is not None
