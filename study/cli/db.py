@@ -1,5 +1,6 @@
 """``asa db check``: integrity and consistency of a study database
-(:func:`study.data.dbtools.check`)."""
+(:func:`study.data.dbtools.check`); ``asa db diff``; ``asa db upgrade``: the schema
+migrations (:func:`study.data.upgrade.upgrade`)."""
 
 from __future__ import annotations
 
@@ -73,3 +74,35 @@ def diff_command(a: str, b: str, tolerance: float, as_json: bool) -> None:
     click.echo(json.dumps(report.as_dict(), indent=2) if as_json else report.text())
     if not report.identical:
         sys.exit(1)
+
+
+@db.command("upgrade")
+@db_option("Study database: a SQLite file or a SQLAlchemy URL (written).")
+@click.option(
+    "--to",
+    "to",
+    default="head",
+    show_default=True,
+    metavar="REV",
+    help="The schema revision to reach (0001, 0002, ...; head: the newest).",
+)
+def upgrade_command(db: str, to: str) -> None:
+    """Bring a study database made by an earlier asa-study to this version's schema:
+    run the schema migrations (Alembic) from its revision to REV, all in one
+    transaction, and print both revisions. A database from before the migrations
+    counts as revision 0001. Running it again changes nothing; there is no downgrade.
+    Back the database up first.
+
+    Exit status 0 when upgraded (or already there), 2 on bad input.
+
+    \b
+    Example:
+      asa db upgrade --db study.db
+    """
+    from study.data.upgrade import upgrade
+
+    before, after = upgrade(db, to=to)
+    if before == after:
+        click.echo(f"{db}: at schema revision {after} already; nothing to do")
+    else:
+        click.echo(f"{db}: schema revision {before} -> {after}")

@@ -3,7 +3,8 @@
 Nothing else in the platform writes SQL. SQLite (one file per study, WAL mode, foreign
 keys on) by default; PostgreSQL (psycopg 3) or any SQLAlchemy URL for a server database,
 timestamps UTC-aware on every backend. Tables (DESIGN.md "Data"):
-``meta`` (``schema_version``), ``study`` (protocol text and SHA-256, platform version,
+``meta`` (``schema_version``, in step with Alembic's ``alembic_version``:
+:mod:`study.data.schema`), ``study`` (protocol text and SHA-256, platform version,
 seed), ``participant`` (pseudonymous code, synthetic parameters, mode order), ``session``
 (one run for a participant; a forced second session is recorded), ``trial`` (phase, mode,
 status, times, outcome), ``sample`` (one per control tick), ``event`` (with a JSON
@@ -52,8 +53,11 @@ from study.data.dbfile import (
     ro_connect,
     sqlite_url_file,
 )
+from study.data.schema import check_revision, stamp_head
 
-SCHEMA_VERSION = 1
+# kept equal to the Alembic head's number in meta.schema_version, which older platform
+# versions and dbfile.probe read (study.data.schema; docs/decisions.md)
+SCHEMA_VERSION = 2
 # the advisory lock key of a study database's write lock on PostgreSQL (one study per
 # database, so one key: "asastudy" in ASCII as a bigint; study.data.ledger.lock_study)
 PG_STUDY_LOCK = int.from_bytes(b"asastudy", "big") & 0x7FFF_FFFF_FFFF_FFFF
@@ -122,6 +126,8 @@ class Study(Base):
     platform_version: Mapped[str] = mapped_column(String(64))
     seed: Mapped[int] = mapped_column(Integer)
     created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utc_now)
+    # the sites of a multi-site study (revision 0002; nothing writes it yet)
+    sites: Mapped[list[Any]] = mapped_column(default=list, server_default=text("'[]'"))
 
     participants: Mapped[list[Participant]] = relationship(back_populates="study")
 
@@ -159,6 +165,9 @@ class SessionRow(Base):
     resumed: Mapped[bool] = mapped_column(Boolean, default=False)
     forced: Mapped[bool] = mapped_column(Boolean, default=False)
     note: Mapped[str] = mapped_column(Text, default="")
+    # where the session ran (revision 0002; None before multi-site studies)
+    site: Mapped[str | None] = mapped_column(String(64))
+    machine: Mapped[str | None] = mapped_column(String(128))
 
     participant: Mapped[Participant] = relationship(back_populates="sessions")
 
@@ -368,10 +377,12 @@ def open_database(
     cannot write can be checked, exported and reported.
 
     Raises ``ValueError`` (one line naming the database) when it is a folder, an empty
-    file, not an SQLite file, not made by this platform, made by a newer schema version,
-    or cannot be opened or written (a missing folder, no permission, a full disk), and
-    for a URL whose database driver is not installed; ``FileNotFoundError`` when the file
-    does not exist and ``create`` is false.
+    file, not an SQLite file, not made by this platform, made by a newer schema version
+    (an unknown revision), at an older schema revision (for writing, or for reading when
+    its tables lack columns the models map: the line names ``asa db upgrade``;
+    :mod:`study.data.schema`), or cannot be opened or written (a missing folder, no
+    permission, a full disk), and for a URL whose database driver is not installed;
+    ``FileNotFoundError`` when the file does not exist and ``create`` is false.
 
     ``durable=False`` skips SQLite's fsync on commit: only for a scratch database that is
     deleted and rebuilt when its process dies (a synthetic study's per-participant file,
@@ -382,7 +393,7 @@ def open_database(
     url = database_url(db)
     try:
         if is_url(str(db)) and sqlite_url_file(url) is None:
-            return _open_server(db, url, create)
+            return _open_server(db, url, create, write=not readonly)
         return _open_sqlite(db, url, create=create, durable=durable, readonly=readonly)
     except DBAPIError as error:
         reason = " ".join(str(error.orig).split()) if error.orig is not None else str(error)
@@ -459,13 +470,19 @@ def _open_sqlite(
     tables, version = probe(path)
     _check_schema(db, tables, version)
     engine = _sqlite_engine(path, given, durable=durable, readonly=readonly)
-    if create and not set(Base.metadata.tables) <= tables:
-        try:
-            _add_tables(engine, sqlite=True)  # an older database: the tables added since
-        except BaseException:
-            engine.dispose()
-            raise
+    try:
+        _check_revision(db, engine, write=not readonly)
+    except BaseException:
+        engine.dispose()
+        raise
     return engine
+
+
+def _check_revision(db: str | Path, engine: Engine, *, write: bool) -> None:
+    """Refuse a database at a revision other than head for writing, an unknown revision,
+    or an older one this code cannot read (:func:`study.data.schema.check_revision`)."""
+    with engine.connect() as conn:
+        check_revision(db, conn, Base.metadata, write=write)
 
 
 def _new_sqlite(path: Path, *, durable: bool) -> None:
@@ -478,7 +495,8 @@ def _new_sqlite(path: Path, *, durable: bool) -> None:
 
 
 def _add_tables(engine: Engine, *, sqlite: bool) -> None:
-    """Create the missing tables and stamp the schema version in one transaction under
+    """Create the missing tables, stamp the schema version and the Alembic head
+    revision in one transaction under
     the database's write lock (SQLite ``BEGIN IMMEDIATE``, PostgreSQL the study's
     advisory lock), so concurrent openers wait and then find the tables made."""
     with engine.connect() as conn:
@@ -491,6 +509,7 @@ def _add_tables(engine: Engine, *, sqlite: bool) -> None:
             conn.execute(
                 Meta.__table__.insert().values(key="schema_version", value=str(SCHEMA_VERSION))
             )
+        stamp_head(conn)
         conn.commit()
 
 
@@ -514,7 +533,7 @@ def _guard_fork(engine: Engine) -> None:
     event.listen(engine, "checkout", check)
 
 
-def _open_server(db: str | Path, url: str, create: bool) -> Engine:
+def _open_server(db: str | Path, url: str, create: bool, *, write: bool) -> Engine:
     """A server database (any SQLAlchemy URL but SQLite); an empty one is a new study.
     Connections are tested before use (``pool_pre_ping``: a server restart or a dropped
     idle connection costs a reconnect, not a failed write)."""
@@ -525,16 +544,17 @@ def _open_server(db: str | Path, url: str, create: bool) -> Engine:
         if tables or not create:
             version = None
             if "meta" in tables:
-                with Session(engine) as s:
-                    row = s.get(Meta, "schema_version")
-                version = None if row is None else row.value
+                with engine.connect() as conn:
+                    row = conn.execute(select(Meta.value).where(Meta.key == "schema_version"))
+                    version = row.scalar()
             _check_schema(db, tables, version)
-        if create and not set(Base.metadata.tables) <= tables:
+        else:
             try:
                 _add_tables(engine, sqlite=False)
             except DBAPIError:  # another process made them at the same moment
                 if not set(Base.metadata.tables) <= set(inspect(engine).get_table_names()):
                     raise
+        _check_revision(db, engine, write=write)
     except BaseException:
         engine.dispose()
         raise
