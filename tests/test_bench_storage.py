@@ -27,7 +27,9 @@ def test_single_writer_commits_every_row(tmp_path):
 
 
 @pytest.mark.parametrize(
-    "backend", ["sqlite", pytest.param("postgresql", marks=pytest.mark.postgres)]
+    "backend",
+    # PostgreSQL's concurrent writers are tested in CI by test_multisite_concurrency.py
+    ["sqlite", pytest.param("postgresql", marks=[pytest.mark.postgres, pytest.mark.slow])],
 )
 def test_concurrent_sessions_write_every_batch(backend, tmp_path, request):
     db = str(tmp_path / "c.db") if backend == "sqlite" else request.getfixturevalue("pg_url")

@@ -85,7 +85,13 @@ def _check_study(db: str, codes: list[str], *, balanced: bool = True) -> None:
 
 
 @pytest.mark.parametrize(
-    "backend", [pytest.param("postgresql", marks=pytest.mark.postgres), "sqlite"]
+    "backend",
+    [
+        pytest.param("postgresql", marks=pytest.mark.postgres),
+        # slow: on SQLite, CI's test of concurrent writers is test_concurrent_writers.py's
+        # two synths and four runs on one study
+        pytest.param("sqlite", marks=pytest.mark.slow),
+    ],
 )
 def test_eight_sessions_at_once(backend, tmp_path, request, monkeypatch):
     monkeypatch.chdir(tmp_path)  # a server study's recordings are in the working folder
