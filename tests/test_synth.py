@@ -79,7 +79,8 @@ kind = "debrief"
 text = "Done."
 """
 
-WALL_CLOCK = {"created_at", "started_at", "ended_at"}
+# when, and a session's random global key (a UUID4, which no run repeats)
+WALL_CLOCK = {"created_at", "started_at", "ended_at", "uid"}
 # a recording's file name begins with its study's tag, which hashes the creation time
 STUDY_TAG = re.compile(r"(?<=/)[0-9a-f]{8}_(?=s\d+_)")
 

@@ -81,6 +81,18 @@ SCREEN_STATUS_EVERY_S = 1.0  # [s] wall time between the screen's status lines
     help="Folder for PNG screenshots of the screen (with --headless or --input human).",
 )
 @click.option("--fast", is_flag=True, help="With --headless: do not pace ticks by the wall clock.")
+@click.option(
+    "--site",
+    default=None,
+    help="The site this session runs at, one of the protocol's [study] sites (required in a "
+    "multi-site study) [default: $ASA_SITE].",
+)
+@click.option(
+    "--machine",
+    default=None,
+    help="The machine's name recorded with the session [default: $ASA_MACHINE, else the host "
+    "name].",
+)
 def run(
     protocol: str,
     code: str,
@@ -92,6 +104,8 @@ def run(
     headless: bool,
     snapshots: Path | None,
     fast: bool,
+    site: str | None,
+    machine: str | None,
 ) -> None:
     """Run one participant through every phase of a protocol and store it in --db.
 
@@ -106,9 +120,12 @@ def run(
       asa run --protocol pilot --participant P01 --db pilot.db --input scripted \\
           --headless --snapshots shots/
       asa run --protocol pilot --participant P01 --db pilot.db --resume   # after a crash
+      asa run --protocol multisite.toml --participant LYON-07 --site lyon \\
+          --db postgresql://asa@db.example.org/study --input human
     """
     from study.cli.terminal import ExperimenterTerminal
     from study.engine.launch import run_participant
+    from study.engine.sites import Place
 
     if input_kind == "human" and headless:
         raise ValueError("--headless: a person needs the window; drop --headless")
@@ -128,7 +145,7 @@ def run(
             protocol, code, db, input_kind=input_kind, seed=seed, resume=resume, force=force,
             headless=headless, snapshots=snapshots, fast=fast, progress=terminal.line,
             status=terminal.status, on_tick=terminal.on_tick,
-            status_every_s=SCREEN_STATUS_EVERY_S,
+            status_every_s=SCREEN_STATUS_EVERY_S, place=Place.given(site, machine),
         )  # fmt: skip
     except BaseException as error:
         terminal.close()

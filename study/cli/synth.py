@@ -55,6 +55,12 @@ from study.cli import PARTICIPANTS, SEED, WORKERS, db_option, flag_errors
     help="Write into a study made with another protocol, seed or platform version "
     "(recorded in each session row).",
 )
+@click.option(
+    "--site",
+    default=None,
+    help="The site of a multi-site study the participants belong to (codes <site>-P01 ...; "
+    "required when the protocol has [study] sites) [default: $ASA_SITE].",
+)
 def synth(
     protocol: str,
     participants: int | None,
@@ -64,14 +70,17 @@ def synth(
     recordings: Path | None,
     no_recordings: bool,
     force: bool,
+    site: str | None,
 ) -> None:
     """Run every participant's session of a protocol with synthetic participants.
 
     \b
     Example:
       asa synth --protocol pilot --participants 6 --seed 1 --workers 2 --db pilot.db
+      asa synth --protocol multisite.toml --site lyon --participants 6 --db lyon.db
     """
     from study.engine.protocol import load_protocol
+    from study.engine.sites import SITE_ENV
     from study.jobs.synth import format_summary, run_synthetic_study, sanity_summary
 
     p = load_protocol(protocol)
@@ -89,6 +98,7 @@ def synth(
                 record=not no_recordings,
                 progress=lambda line: click.echo(line, err=True),
                 force=force,
+                site=site if site is not None else os.environ.get(SITE_ENV) or None,
             )
     except ValueError as error:  # the library names its parameter, the user types a flag
         raise ValueError(str(error).replace("force=True", "--force")) from error

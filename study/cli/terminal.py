@@ -138,8 +138,9 @@ def resume_command(params: dict[str, Any], *, program: str = "asa") -> str:
     for name in ("force", "headless", "fast"):
         if params.get(name):
             args.append(f"--{name}")
-    if params.get("snapshots") is not None:
-        args += ["--snapshots", str(params["snapshots"])]
+    for name in ("snapshots", "site", "machine"):
+        if params.get(name) is not None:
+            args += [f"--{name}", str(params[name])]
     args.append("--resume")
     return shlex.join(args)
 

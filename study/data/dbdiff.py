@@ -5,8 +5,8 @@ Every table of the data model (:mod:`study.data.storage`) is read in primary-key
 from both databases and compared column by column, except the columns that record when
 or where something happened on the machine rather than what happened in the study
 (:data:`WALL_CLOCK_COLUMNS`: creation and start/end times, the humans' tick jitter, the
-recordings' file names, the platform version, the model file's path), including such
-keys inside JSON columns.
+recordings' file names, the platform version, the model file's path, the machine, a
+session's random global key), including such keys inside JSON columns.
 Floats compare equal within ``tolerance`` (absolute); everything else exactly.
 """
 
@@ -34,6 +34,8 @@ WALL_CLOCK_COLUMNS = frozenset(
         "tick_jitter_ms",
         "recording_path",
         "platform_version",
+        "machine",
+        "uid",
     }
 )
 MAX_SHOWN = 5  # differing rows shown per table

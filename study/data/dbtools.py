@@ -175,6 +175,7 @@ def check(db: str | Path, *, verify_recordings: bool = True) -> CheckReport:
             if after is not None and after[0]:
                 _check_questionnaires(s, main_trials, sessions, after[1], problems)
             counts["live_sessions"] = _check_people(s, db, protocol, problems)
+            _check_sites(s, study, problems)
             if "order_slot" in present:
                 _check_ledger(s, db, study, protocol, problems)
             counts["trials_checked"] = checked
@@ -241,6 +242,26 @@ def _check_people(s: Session, db: str | Path, protocol: Any, problems: list[str]
     return live
 
 
+def _check_sites(s: Session, study: Any, problems: list[str]) -> None:
+    """In a multi-site study every participant belongs to one of the study's sites, and
+    every session ran at its participant's site (issue 24)."""
+    sites = list(study.sites or []) if study is not None else []
+    people = {p.id: p for p in s.scalars(select(Participant))}
+    for person in people.values():
+        if sites and person.site not in sites:
+            problems.append(
+                f"participant {person.code}: site {person.site or '(none)'} is not one of the "
+                f"study's sites ({', '.join(sites)})"
+            )
+    for row in s.scalars(select(SessionRow).order_by(SessionRow.id)):
+        person = people.get(row.participant_id)
+        if person is not None and row.site is not None and row.site != person.site:
+            problems.append(
+                f"participant {person.code}: session {row.id} ran at site {row.site}, the "
+                f"participant belongs to {person.site or '(none)'}"
+            )
+
+
 def _experience(protocol: Any) -> str:
     """The instrument of the protocol's experience phase, "" without one."""
     phase = protocol.phase("experience") if protocol is not None else None
@@ -274,16 +295,26 @@ def _check_ledger(
     of the scheme; a slot reserved by a synthetic study that is no longer running."""
     from study.engine.counterbalance import SlotOrders
 
-    rows = list(s.scalars(select(OrderSlot).order_by(OrderSlot.slot)))
+    rows = list(s.scalars(select(OrderSlot).order_by(OrderSlot.site, OrderSlot.slot)))
     people = {p.id: p for p in s.scalars(select(Participant))}
     if not rows:
         return  # a database made before the ledger: filled in on its next write
-    orders = SlotOrders(protocol.modes, protocol.counterbalancing, study.seed) if protocol else None
+    per_site: dict[str, SlotOrders] = {}
+
+    def row_of(site: str, slot: int) -> int | None:
+        if protocol is None:
+            return None
+        if site not in per_site:
+            per_site[site] = SlotOrders(
+                protocol.modes, protocol.counterbalancing, study.seed, site or None
+            )
+        return per_site[site].row(slot)
+
     holders: dict[int, int] = {}
     released = {h.get("participant_id") for r in rows for h in r.released}
     synth_live = _synth_live(s, db)
     for r in rows:
-        where = f"order slot {r.slot}"
+        where = f"order slot {r.slot}" + (f" of site {r.site}" if r.site else "")
         if r.status == "reserved":
             if r.participant_id is None and not synth_live:
                 problems.append(
@@ -296,10 +327,12 @@ def _check_ledger(
             problems.append(f"{where}: held by {r.code}, who is not that participant")
             continue
         holders[person.id] = holders.get(person.id, 0) + 1
-        if orders is not None and orders.row(r.slot) != person.order_index:
+        if r.site != (person.site or ""):
+            problems.append(f"{where}: {r.code} belongs to site {person.site or '(none)'}")
+        expected = row_of(r.site, r.slot)
+        if expected is not None and expected != person.order_index:
             problems.append(
-                f"{where}: gives row {orders.row(r.slot)}, but {r.code} has row "
-                f"{person.order_index}"
+                f"{where}: gives row {expected}, but {r.code} has row {person.order_index}"
             )
     for pid, person in people.items():
         if holders.get(pid, 0) > 1:

@@ -8,6 +8,12 @@ is reissued first (the lowest such), else the lowest slot never issued; the form
 participant code plays no part. Slot ``k`` maps to a row of the counterbalancing scheme
 through ``row_of`` (:class:`study.engine.counterbalance.SlotOrders`); this module knows
 nothing of schemes.
+
+A multi-site study keeps one ledger per site (``order_slot.site``; docs/decisions.md
+"Counterbalancing across sites"): a site's participants take that site's slots 0, 1, ...,
+so every site is balanced on its own and an offline site allocates from its own file
+without colliding with another site's slots; a study without sites has the one ledger
+``site = ""``. A participant code is unique in the study whatever its site.
 """
 
 from __future__ import annotations
@@ -28,6 +34,13 @@ from study.data.storage import (
     utc_now,
 )
 
+# the rule of the ledger, as `asa plan --db` states it (docs/decisions.md)
+RULE = (
+    "each site has its own slots 0, 1, ... (one ledger without sites); a new participant "
+    "takes its site's lowest slot released by an excluded participant, else its lowest slot "
+    "never issued; an aborted session keeps its slot (resume it), an excluded one's is "
+    "reissued"
+)
 RowOf = Callable[[int], int]  # slot -> counterbalancing row (participant.order_index)
 _SEARCH = 1000  # slots searched beyond the last issued one when backfilling a row
 
@@ -59,10 +72,13 @@ def excluded_ids(s: Session) -> set[int]:
     }
 
 
-def _slots(s: Session, study_id: int) -> list[OrderSlot]:
-    return list(
-        s.scalars(select(OrderSlot).where(OrderSlot.study_id == study_id).order_by(OrderSlot.slot))
-    )
+def _slots(s: Session, study_id: int, site: str | None = None) -> list[OrderSlot]:
+    """The ledger rows of ``site`` ("" without sites) in slot order; every site's (in site
+    and slot order) when ``site`` is None."""
+    query = select(OrderSlot).where(OrderSlot.study_id == study_id)
+    if site is not None:
+        query = query.where(OrderSlot.site == site)
+    return list(s.scalars(query.order_by(OrderSlot.site, OrderSlot.slot)))
 
 
 def _lowest_free(used: set[int]) -> int:
@@ -88,16 +104,18 @@ def _backfill_slot(person: Participant, used: set[int], row_of: RowOf) -> int:
 
 
 def backfill(s: Session, study_id: int, row_of: RowOf, skip: int | None = None) -> int:
-    """Ledger rows for participants stored without one (databases made before issue 20),
-    in participant order, except participant id ``skip`` (the one being given a slot);
-    returns how many were added. Call under :func:`lock_study`."""
-    rows = _slots(s, study_id)
-    known = {r.participant_id for r in rows} | {skip}
-    known |= {h.get("participant_id") for r in rows for h in r.released}
+    """Ledger rows for participants stored without one (databases made before issue 20,
+    which had no sites), in participant order, except participant id ``skip`` (the one
+    being given a slot); returns how many were added. Call under :func:`lock_study`."""
+    everywhere = _slots(s, study_id)
+    known = {r.participant_id for r in everywhere} | {skip}
+    known |= {h.get("participant_id") for r in everywhere for h in r.released}
     people = s.scalars(
-        select(Participant).where(Participant.study_id == study_id).order_by(Participant.id)
+        select(Participant)
+        .where(Participant.study_id == study_id, Participant.site.is_(None))
+        .order_by(Participant.id)
     ).all()
-    used = {r.slot for r in rows}
+    used = {r.slot for r in everywhere if r.site == ""}
     added = 0
     for person in people:
         if person.id in known:
@@ -130,20 +148,26 @@ def _release_excluded(s: Session, rows: list[OrderSlot]) -> None:
 
 
 def allocate(
-    s: Session, study_id: int, code: str, participant_id: int | None, row_of: RowOf
+    s: Session,
+    study_id: int,
+    code: str,
+    participant_id: int | None,
+    row_of: RowOf,
+    site: str | None = None,
 ) -> int:
-    """The slot for participant ``code``, recorded in the ledger; call under
-    :func:`lock_study`, in the transaction that creates the participant.
+    """The slot for participant ``code`` in the ledger of ``site`` (None: a study without
+    sites), recorded; call under :func:`lock_study`, in the transaction that creates the
+    participant.
 
     A slot already reserved for ``code`` is taken up (``participant_id`` None keeps it
-    reserved); else the lowest slot released by an excluded participant is reissued (its
-    earlier holder kept in ``released``); else the lowest slot never issued.
+    reserved); else the site's lowest slot released by an excluded participant is reissued
+    (its earlier holder kept in ``released``); else the site's lowest slot never issued.
     """
     backfill(s, study_id, row_of, participant_id)
-    rows = _slots(s, study_id)
-    mine = next((r for r in rows if r.code == code), None)
+    mine = next((r for r in _slots(s, study_id) if r.code == code), None)
+    rows = _slots(s, study_id, site or "")
     if mine is not None:
-        if mine.status != "reserved":
+        if mine.status != "reserved" or mine.site != (site or ""):
             raise RuntimeError(f"participant {code} already holds order slot {mine.slot}")
         if participant_id is not None:
             mine.participant_id, mine.status = participant_id, "issued"
@@ -162,8 +186,8 @@ def allocate(
         s.flush()
         return r.slot
     k = _lowest_free({r.slot for r in rows})
-    s.add(OrderSlot(study_id=study_id, slot=k, code=code, participant_id=participant_id,
-                    status=status))  # fmt: skip
+    s.add(OrderSlot(study_id=study_id, site=site or "", slot=k, code=code,
+                    participant_id=participant_id, status=status))  # fmt: skip
     s.flush()
     return k
 
@@ -172,6 +196,7 @@ def allocate(
 class LedgerEntry:
     """One slot as the experimenter reads it."""
 
+    site: str  # "" in a study without sites
     slot: int
     code: str
     status: str  # reserved, running, completed, aborted, excluded, released, no session
@@ -181,7 +206,8 @@ class LedgerEntry:
 
 
 def entries(s: Session, study_id: int) -> list[LedgerEntry]:
-    """The ledger in slot order, each slot's holder and the state of its last session."""
+    """The ledger in site and slot order, each slot's holder and the state of its last
+    session."""
     people = {p.id: p for p in s.scalars(select(Participant))}
     last: dict[int, SessionRow] = {}
     for row in s.scalars(select(SessionRow).order_by(SessionRow.id)):
@@ -197,6 +223,7 @@ def entries(s: Session, study_id: int) -> list[LedgerEntry]:
                 status = "excluded"
         out.append(
             LedgerEntry(
+                site=r.site,
                 slot=r.slot,
                 code=r.code,
                 status=status,

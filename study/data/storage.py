@@ -20,6 +20,7 @@ import functools
 import os
 import re
 import sqlite3
+import uuid
 from pathlib import Path
 from typing import Any
 
@@ -57,7 +58,7 @@ from study.data.schema import check_revision, stamp_head
 
 # kept equal to the Alembic head's number in meta.schema_version, which older platform
 # versions and dbfile.probe read (study.data.schema; docs/decisions.md)
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
 # the advisory lock key of a study database's write lock on PostgreSQL (one study per
 # database, so one key: "asastudy" in ASCII as a bigint; study.data.ledger.lock_study)
 PG_STUDY_LOCK = int.from_bytes(b"asastudy", "big") & 0x7FFF_FFFF_FFFF_FFFF
@@ -74,6 +75,11 @@ PARTICIPANT_KINDS = ("human", "synthetic", "scripted")
 # merged, then "issued"; an issued slot whose holder was excluded is reissued (the earlier
 # holders are kept in ``OrderSlot.released``)
 SLOT_STATUSES = ("reserved", "issued")
+
+
+def new_uid() -> str:
+    """A new global key (a session's ``uid``): a random UUID4 as 36 characters."""
+    return str(uuid.uuid4())
 
 
 def utc_now() -> dt.datetime:
@@ -126,7 +132,7 @@ class Study(Base):
     platform_version: Mapped[str] = mapped_column(String(64))
     seed: Mapped[int] = mapped_column(Integer)
     created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utc_now)
-    # the sites of a multi-site study (revision 0002; nothing writes it yet)
+    # the sites of a multi-site study, from the protocol's [study] sites (revision 0002)
     sites: Mapped[list[Any]] = mapped_column(default=list, server_default=text("'[]'"))
 
     participants: Mapped[list[Participant]] = relationship(back_populates="study")
@@ -146,6 +152,8 @@ class Participant(Base):
     )  # e.g. ["manual", "reactive_bn", ...]
     seed: Mapped[int] = mapped_column(Integer)
     created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utc_now)
+    # the site the participant belongs to (its ledger; revision 0003; None without sites)
+    site: Mapped[str | None] = mapped_column(String(64))
 
     study: Mapped[Study] = relationship(back_populates="participants")
     sessions: Mapped[list[SessionRow]] = relationship(back_populates="participant")
@@ -168,6 +176,10 @@ class SessionRow(Base):
     # where the session ran (revision 0002; None before multi-site studies)
     site: Mapped[str | None] = mapped_column(String(64))
     machine: Mapped[str | None] = mapped_column(String(128))
+    # the session's key in every database it is pushed to (a UUID4; revision 0003)
+    uid: Mapped[str | None] = mapped_column(
+        String(36), default=new_uid, unique=True, index=True
+    )
 
     participant: Mapped[Participant] = relationship(back_populates="sessions")
 
@@ -274,9 +286,14 @@ class OrderSlot(Base):
     slot and study; ``participant_id`` is its current holder (None while ``reserved``)."""
 
     __tablename__ = "order_slot"
-    __table_args__ = (UniqueConstraint("study_id", "slot"), UniqueConstraint("study_id", "code"))
+    __table_args__ = (
+        UniqueConstraint("study_id", "site", "slot", name="uq_order_slot_site_slot"),
+        UniqueConstraint("study_id", "code", name="uq_order_slot_code"),
+    )
     id: Mapped[int] = mapped_column(primary_key=True)
     study_id: Mapped[int] = mapped_column(ForeignKey("study.id"))
+    # the site whose ledger this slot belongs to ("" in a study without sites; revision 0003)
+    site: Mapped[str] = mapped_column(String(64), default="", server_default=text("''"))
     slot: Mapped[int] = mapped_column(Integer)  # from 0
     code: Mapped[str] = mapped_column(String(64))  # the current holder's code
     participant_id: Mapped[int | None] = mapped_column(ForeignKey("participant.id"))

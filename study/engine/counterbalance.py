@@ -10,6 +10,7 @@ Pure: no I/O, randomness only through the generator passed in.
 
 from __future__ import annotations
 
+import hashlib
 import itertools
 import math
 from collections import Counter
@@ -144,19 +145,33 @@ def assign_indexed(
     return [(i % len(rows), rows[i % len(rows)]) for i in range(n)]
 
 
+def site_seed(study_seed: int, site: str | None) -> int:
+    """The seed of a site's random orders: the study seed in a study without sites (``site``
+    None or ""), else a 63-bit hash of the study seed and the site's name, so that the sites
+    draw independently (docs/decisions.md "Counterbalancing across sites")."""
+    if not site:
+        return study_seed
+    digest = hashlib.sha256(f"{study_seed}:site:{site}".encode()).digest()
+    return int.from_bytes(digest[:8], "little") >> 1
+
+
 class SlotOrders:
     """The counterbalancing row and mode order of each slot of a study's order ledger
     (:mod:`study.data.ledger`): slot ``k`` (from 0) is participant ``k`` of
     :func:`assign_indexed`, i.e. row ``k mod cycle`` of a deterministic scheme and the
     ``k``-th draw of ``random`` from a generator seeded with ``seed`` (drawn in sequence,
-    kept, so asking for slot ``k`` costs ``k`` draws once)."""
+    kept, so asking for slot ``k`` costs ``k`` draws once). A site of a multi-site study
+    has its own ledger: the same rows of a deterministic scheme, its own random draws
+    (:func:`site_seed`)."""
 
-    def __init__(self, modes: Sequence[str], scheme: str, seed: int) -> None:
+    def __init__(
+        self, modes: Sequence[str], scheme: str, seed: int, site: str | None = None
+    ) -> None:
         self.modes = _check_modes(modes)
         _check_scheme(scheme)
         self.scheme = scheme
         self.rows = scheme_rows(self.modes, scheme) if scheme != "random" else None
-        self._rng = np.random.default_rng(seed)
+        self._rng = np.random.default_rng(site_seed(seed, site))
         self._drawn: list[tuple[int, tuple[str, ...]]] = []
 
     def __call__(self, slot: int) -> tuple[int, tuple[str, ...]]:

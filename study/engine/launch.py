@@ -15,6 +15,7 @@ import numpy as np
 from study.engine.clocks import ExperimenterControl, sigint_aborts
 from study.engine.protocol import Protocol, load_protocol
 from study.engine.session import SessionSummary, check_code, default_seed, run_session
+from study.engine.sites import Place
 from study.engine.trial import TrialWriter
 from study.participants.base import Participant
 
@@ -48,6 +49,7 @@ def run_participant(
     status: Callable[[str], None] | None = None,
     on_tick: Callable[[int, TrialWriter], None] | None = None,
     status_every_s: float = 5.0,
+    place: Place | None = None,
 ) -> SessionSummary:
     """Run (or resume) participant ``code``'s session of ``protocol`` in ``db``.
 
@@ -77,6 +79,9 @@ def run_participant(
         ``status_every_s`` of wall time during a trial (screen only); after every tick.
     status_every_s : float
         [s] of wall time between the screen's status lines.
+    place : Place, optional
+        The site and machine (:class:`study.engine.sites.Place`); default no site, this
+        host.
 
     Returns
     -------
@@ -93,12 +98,12 @@ def run_participant(
             participant = decider(input_kind, seed)
             return run_session(
                 p, code, db, participant=participant, seed=seed, resume=resume, force=force,
-                progress=progress, control=control, on_tick=on_tick,
+                progress=progress, control=control, on_tick=on_tick, place=place,
             )  # fmt: skip
         return _on_screen(
             p, code, db, input_kind, seed, resume=resume, force=force, headless=headless,
             snapshots=snapshots, fast=fast, progress=progress, status=status, on_tick=on_tick,
-            control=control, status_every_s=status_every_s,
+            control=control, status_every_s=status_every_s, place=place,
         )  # fmt: skip
 
 
@@ -119,6 +124,7 @@ def _on_screen(
     on_tick: Callable[[int, TrialWriter], None] | None,
     control: ExperimenterControl,
     status_every_s: float,
+    place: Place | None,
 ) -> SessionSummary:
     """The session on the participant's screen (the camera image it shows is recorded)."""
     if headless:
@@ -149,6 +155,7 @@ def _on_screen(
             control=control,
             clock=FreeClock() if fast else person.clock(),
             on_tick=on_tick,
+            place=place,
         )
     finally:
         person.close()

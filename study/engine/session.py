@@ -37,6 +37,7 @@ from study.engine.counterbalance import SlotOrders, cycle_length
 from study.engine.protocol import Protocol
 from study.engine.resume import resume_plan, session_state
 from study.engine.runner import SessionRunner, TrialSummary, derive_seed
+from study.engine.sites import Place, check_participant_site, check_site
 from study.engine.trial import ExperimenterControl, FreeClock, TrialWriter, WallClock
 from study.participants.base import Participant as SessionParticipant
 
@@ -127,6 +128,7 @@ def _study(s: Session, protocol: Protocol, db: str | Path, force: bool, notes: l
             protocol_sha256=protocol.sha256,
             platform_version=__version__,
             seed=protocol.study.seed,
+            sites=list(protocol.study.sites),
         )
         s.add(study)
         s.flush()
@@ -159,8 +161,10 @@ def _resume(
     code: str,
     db: str | Path,
     notes: list[str],
+    machine: str,
 ) -> SessionRow:
-    """Reopen the participant's last session: trials left ``running`` become ``aborted``."""
+    """Reopen the participant's last session (on ``machine``, recorded in the event):
+    trials left ``running`` become ``aborted``."""
     if person is None or not sessions:
         raise ValueError(
             f"{db}: field 'participant.code': participant {code} has no session "
@@ -188,7 +192,7 @@ def _resume(
             trial_id=None,
             t=0.0,
             kind="session_resumed",
-            detail={"aborted_trials": [t.id for t in stale]},
+            detail={"aborted_trials": [t.id for t in stale], "machine": machine},
         )
     )
     if notes:
@@ -205,12 +209,14 @@ def _new_person(
     participant: SessionParticipant,
     seed: int | None,
     slot: int | None,
+    site: str | None,
 ) -> Participant:
-    """The participant row with its order slot from the ledger (``slot`` when the caller
-    reserved one) and the mode order of that slot."""
+    """The participant row with its order slot from the ledger of its ``site`` (``slot``
+    when the caller reserved one) and the mode order of that slot."""
     person = Participant(
         study_id=study.id,
         code=code,
+        site=site,
         kind=participant.kind,
         parameters=dict(participant.parameters),
         order_index=0,
@@ -219,11 +225,15 @@ def _new_person(
     )
     s.add(person)
     s.flush()
-    orders = _slot_orders(protocol, study)
+    orders = _slot_orders(protocol, study, site)
     if slot is None:
-        slot = ledger.allocate(s, study.id, code, person.id, orders.row)
+        slot = ledger.allocate(s, study.id, code, person.id, orders.row, site)
     else:
-        s.add(OrderSlot(study_id=study.id, slot=slot, code=code, participant_id=person.id))
+        s.add(
+            OrderSlot(
+                study_id=study.id, site=site or "", slot=slot, code=code, participant_id=person.id
+            )
+        )
     index, order = orders(_check_slot(slot, protocol, code))
     person.order_index, person.mode_order = index, list(order)
     s.flush()
@@ -258,10 +268,10 @@ def _not_reserved_elsewhere(
         )
 
 
-def _slot_orders(protocol: Protocol, study: Study) -> SlotOrders:
-    """Slot -> (row, mode order) under ``protocol``'s scheme (random draws seeded with the
-    study seed)."""
-    return SlotOrders(protocol.modes, protocol.counterbalancing, study.seed)
+def _slot_orders(protocol: Protocol, study: Study, site: str | None) -> SlotOrders:
+    """Slot -> (row, mode order) of ``site``'s ledger under ``protocol``'s scheme (random
+    draws seeded with the study seed and the site)."""
+    return SlotOrders(protocol.modes, protocol.counterbalancing, study.seed, site)
 
 
 def _check_slot(slot: int, protocol: Protocol, code: str) -> int:
@@ -275,18 +285,29 @@ def _check_slot(slot: int, protocol: Protocol, code: str) -> int:
 
 
 def reserve_slots(
-    engine: Engine, protocol: Protocol, db: str | Path, codes: Sequence[str], *, force: bool
+    engine: Engine,
+    protocol: Protocol,
+    db: str | Path,
+    codes: Sequence[str],
+    *,
+    force: bool,
+    place: Place | None = None,
 ) -> tuple[dict[str, int], list[str]]:
     """Order slots reserved in the study database for participants ``codes`` that run
-    elsewhere first (a synthetic study's scratch files), in one locked transaction; the
-    study row is made if missing and its identity checked as :func:`run_session` does.
-    Returns code -> slot (a code reserved before keeps its slot) and the notes of a forced
-    identity mismatch."""
+    elsewhere first (a synthetic study's scratch files) at ``place``'s site, in one locked
+    transaction; the study row is made if missing and its identity checked as
+    :func:`run_session` does. Returns code -> slot (a code reserved before keeps its slot)
+    and the notes of a forced identity mismatch."""
     notes: list[str] = []
+    place = place if place is not None else Place()
     with Session(engine) as s, s.begin():
         study = _study(s, protocol, db, force, notes)
-        orders = _slot_orders(protocol, study)
-        out = {code: ledger.allocate(s, study.id, code, None, orders.row) for code in codes}
+        check_site(db, place, study.sites or [], study.name)
+        orders = _slot_orders(protocol, study, place.site)
+        out = {
+            code: ledger.allocate(s, study.id, code, None, orders.row, place.site)
+            for code in codes
+        }
         for code, slot in out.items():
             _check_slot(slot, protocol, code)
     return out, notes
@@ -303,16 +324,21 @@ def _open(
     resume: bool,
     force: bool,
     slot: int | None = None,
+    place: Place | None = None,
 ) -> _Opened:
-    """Resume the participant's session or start a new one, in one transaction."""
+    """Resume the participant's session or start a new one at ``place`` (default no site,
+    this host), in one transaction."""
     notes: list[str] = []
+    place = place if place is not None else Place()
     with Session(engine) as s, s.begin():
         study = _study(s, protocol, db, force, notes)
+        check_site(db, place, study.sites or [], study.name)
         person = s.scalars(
             select(Participant).where(Participant.study_id == study.id, Participant.code == code)
         ).first()
         sessions = []
         if person is not None:
+            check_participant_site(db, code, person.site, place)
             sessions = list(
                 s.scalars(
                     select(SessionRow)
@@ -321,7 +347,7 @@ def _open(
                 )
             )
         if resume:
-            row = _resume(s, person, sessions, code, db, notes)
+            row = _resume(s, person, sessions, code, db, notes, place.machine)
         else:
             if sessions:
                 if not force:
@@ -336,9 +362,13 @@ def _open(
                 )
             if person is None:
                 _not_reserved_elsewhere(s, study, code, db, slot)
-                person = _new_person(s, study, protocol, code, participant, seed, slot)
+                person = _new_person(
+                    s, study, protocol, code, participant, seed, slot, place.site
+                )
             row = SessionRow(
                 participant_id=person.id,
+                site=place.site,
+                machine=place.machine,
                 status="running",
                 forced=bool(notes),
                 note="; ".join(notes),
@@ -373,6 +403,7 @@ def run_session(
     durable: bool = True,
     slot: int | None = None,
     lock: bool = True,
+    place: Place | None = None,
 ) -> SessionSummary:
     """Run (or resume) one participant's session of ``protocol`` and store everything.
 
@@ -418,6 +449,10 @@ def run_session(
         Hold the session's lock file (``<db stem>_locks/session-<code>.lock``, SQLite only)
         while it runs, so ``asa db check`` knows it is live and a second process cannot
         run the same participant; False for scratch files.
+    place : Place, optional
+        Where the session runs: the site (required, and one of the study's, in a study
+        with sites; the participant's site for all its sessions) and the machine; default
+        no site and this host's name.
 
     Returns
     -------
@@ -428,7 +463,8 @@ def run_session(
     ValueError
         A bad participant code, a database not ours or made with another protocol, study
         seed or platform version, a second session without ``force``, nothing to resume,
-        the participant's session running in another process.
+        the participant's session running in another process, a missing or unknown site
+        or another site than the participant's.
     """
     code = check_code(participant_code)
     human = participant.kind == "human"
@@ -441,9 +477,10 @@ def run_session(
         recordings=Path(recordings).resolve() if recordings is not None else None,
         record=record,
     )
+    where = place if place is not None else Place()
     with _session_lock(db, code, lock):
         return _run_locked(
-            protocol, code, db, participant, seed, resume, force, durable, slot, options
+            protocol, code, db, participant, seed, resume, force, durable, slot, where, options
         )
 
 
@@ -495,6 +532,7 @@ def _run_locked(
     force: bool,
     durable: bool,
     slot: int | None,
+    place: Place,
     options: _RunOptions,
 ) -> SessionSummary:
     """:func:`run_session` once the session's lock is held."""
@@ -502,7 +540,7 @@ def _run_locked(
     try:
         opened = _open(
             engine, protocol, code, db, participant,
-            seed=seed, resume=resume, force=force, slot=slot,
+            seed=seed, resume=resume, force=force, slot=slot, place=place,
         )  # fmt: skip
         runner = SessionRunner(
             protocol,

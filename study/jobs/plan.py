@@ -11,7 +11,7 @@ import numpy as np
 from sqlalchemy.orm import Session
 
 from sim.limits import MAX_PARTICIPANTS, MAX_SEED
-from study.data.ledger import entries
+from study.data.ledger import RULE, entries
 from study.data.storage import get_study, open_database
 from study.engine.counterbalance import assign_indexed, balance
 from study.engine.protocol import load_protocol, parse_protocol
@@ -105,10 +105,13 @@ def format_plan(result: dict[str, Any]) -> str:
 
 def ledger(db: str | Path) -> dict[str, Any]:
     """The order ledger of the study in ``db``, JSON-ready: ``protocol`` (name), ``sha256``,
-    ``scheme``, ``slots`` (list of ``{slot, code, order_index, modes, status, released}``
-    in slot order; ``status`` is the holder's last session's, ``excluded``, ``reserved``
-    or ``no session``; ``released`` the codes of excluded earlier holders) and the
-    ``balance`` of the orders of the slots' holders (:func:`balance`), None without any.
+    ``scheme``, ``sites`` (the study's; [] without sites), ``rule`` (how slots are issued,
+    :data:`study.data.ledger.RULE`), ``slots`` (list of ``{site, slot, code, order_index,
+    modes, status, released}`` in site and slot order; ``status`` is the holder's last
+    session's, ``excluded``, ``reserved`` or ``no session``; ``released`` the codes of
+    excluded earlier holders), the ``balance`` of the orders of the slots' holders
+    (:func:`balance`), None without any, and ``balance_by_site`` (site -> balance, {}
+    without sites).
 
     Raises
     ------
@@ -123,19 +126,28 @@ def ledger(db: str | Path) -> dict[str, Any]:
                 raise ValueError(f"{db}: field 'study': no study in this database yet")
             rows = entries(s, study.id)
             name, sha, text = study.name, study.protocol_sha256, study.protocol_text
+            sites = [str(x) for x in study.sites or []]
     finally:
         engine.dispose()
     try:
         scheme = parse_protocol(text, "<stored protocol>").counterbalancing
     except ValueError:
         scheme = None
-    orders = [r.mode_order for r in rows if r.mode_order]
+
+    def balanced(site: str | None) -> dict[str, Any] | None:
+        orders = [r.mode_order for r in rows if r.mode_order and site in (None, r.site)]
+        return balance(orders, scheme=scheme) if orders else None
+
+    by_site = {site: balanced(site) for site in sites}
     return {
         "protocol": name,
         "sha256": sha,
         "scheme": scheme,
+        "sites": sites,
+        "rule": RULE,
         "slots": [
             {
+                "site": r.site,
                 "slot": r.slot,
                 "code": r.code,
                 "order_index": r.order_index,
@@ -145,27 +157,49 @@ def ledger(db: str | Path) -> dict[str, Any]:
             }
             for r in rows
         ],  # fmt: skip
-        "balance": balance(orders, scheme=scheme) if orders else None,
+        "balance": balanced(None),
+        "balance_by_site": {k: v for k, v in by_site.items() if v is not None},
     }
 
 
+def _ledger_line(r: dict[str, Any]) -> str:
+    row = "-" if r["order_index"] is None else str(r["order_index"])
+    line = f"{r['slot']:>4}  {r['code']:<11}  {row:>3}  {r['status']:<10}  "
+    line += " > ".join(r["modes"]) if r["modes"] else "-"
+    if r["released"]:
+        line += f"  (released by {', '.join(r['released'])})"
+    return line
+
+
+def _verdict(label: str, b: dict[str, Any] | None) -> list[str]:
+    if b is None:
+        return []
+    return [f"{label}: {'yes' if b['balanced'] else 'no'}"] + [
+        f"warning: {w}" for w in b["warnings"]
+    ]
+
+
 def format_ledger(result: dict[str, Any]) -> str:
-    """The ledger as text: one line per slot, then the balance verdict and warnings."""
+    """The ledger as text: the rule, one line per slot (under a heading per site in a
+    multi-site study), then the balance verdicts and warnings."""
+    sites = result["sites"] or [""]
     lines = [
         f"study {result['protocol']}, sha256 {result['sha256'][:12]}, scheme {result['scheme']}",
-        f"{len(result['slots'])} order slots issued",
-        "",
-        "slot  participant  row  status      order",
+        f"{len(result['slots'])} order slots issued"
+        + (f" at {len(result['sites'])} sites" if result["sites"] else ""),
+        f"rule: {result['rule']}",
     ]
-    for r in result["slots"]:
-        row = "-" if r["order_index"] is None else str(r["order_index"])
-        line = f"{r['slot']:>4}  {r['code']:<11}  {row:>3}  {r['status']:<10}  "
-        line += " > ".join(r["modes"]) if r["modes"] else "-"
-        if r["released"]:
-            line += f"  (released by {', '.join(r['released'])})"
-        lines.append(line)
-    b = result["balance"]
-    if b is not None:
-        lines += ["", f"balanced for {result['scheme']}: {'yes' if b['balanced'] else 'no'}"]
-        lines += [f"warning: {w}" for w in b["warnings"]]
+    for site in sites + sorted({r["site"] for r in result["slots"]} - set(sites)):
+        slots = [r for r in result["slots"] if r["site"] == site]
+        if site and not slots:
+            lines += ["", f"site {site}: no participant yet"]
+            continue
+        lines += ["", f"site {site}: {len(slots)} slots"] if site else [""]
+        lines += ["slot  participant  row  status      order"]
+        lines += [_ledger_line(r) for r in slots]
+        if site:
+            lines += _verdict(f"balanced for {result['scheme']} at {site}",
+                              result["balance_by_site"].get(site))  # fmt: skip
+    lines += [""] if result["balance"] is not None else []
+    lines += _verdict(f"balanced for {result['scheme']}", result["balance"])
     return "\n".join(lines)

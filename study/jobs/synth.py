@@ -43,7 +43,9 @@ from study.data.storage import (
 )
 from study.engine.protocol import Protocol, load_protocol
 from study.engine.recognition import RecognitionTally
+from study.engine.counterbalance import site_seed
 from study.engine.session import derive_seed, reserve_slots, run_session
+from study.engine.sites import Place
 from study.participants.synthetic import Population, SyntheticParticipant
 
 
@@ -72,6 +74,7 @@ class _Job:
     study_seed: int
     slot: int = 0  # the order slot reserved in the study database
     record: bool = True  # False: no recordings (``asa synth --no-recordings``)
+    place: Place = Place()  # the site (of a multi-site study) and this machine
 
 
 @dataclass(frozen=True, slots=True)
@@ -83,10 +86,12 @@ class _Done:
     simulated_s: float
 
 
-def participant_codes(n: int) -> tuple[str, ...]:
-    """``P01`` .. ``PNN`` (zero-padded to at least two digits)."""
+def participant_codes(n: int, site: str | None = None) -> tuple[str, ...]:
+    """``P01`` .. ``PNN`` (zero-padded to at least two digits), ``<site>-P01`` ... at a
+    site of a multi-site study (codes are unique across sites)."""
     width = max(2, len(str(n)))
-    return tuple(f"P{i + 1:0{width}d}" for i in range(n))
+    prefix = f"{site}-" if site else ""
+    return tuple(f"{prefix}P{i + 1:0{width}d}" for i in range(n))
 
 
 def _remove_db(path: Path) -> None:
@@ -124,6 +129,7 @@ def _run_job(job: _Job) -> _Done:
         durable=False,  # the scratch file is deleted and rebuilt after a crash
         slot=job.slot,
         lock=False,  # the study's synth lock covers the scratch folder
+        place=job.place,
     )
     simulated = sum(
         (t.completion_time_s or 0.0) for t in summary.trials if t.completion_time_s is not None
@@ -163,6 +169,7 @@ def run_synthetic_study(
     progress: Callable[[str], None] | None = None,
     population: Population | None = None,
     force: bool = False,
+    site: str | None = None,
 ) -> SynthSummary:
     """Run ``participants`` synthetic participants' sessions of ``protocol`` into ``db``.
 
@@ -195,6 +202,11 @@ def run_synthetic_study(
     force : bool
         Write into a study made with another protocol, protocol seed, platform version or
         synthetic seed (recorded in each merged session's ``forced`` and ``note``).
+    site : str, optional
+        The site of a multi-site study the participants belong to (required when the
+        protocol has ``[study] sites``): codes ``<site>-P01`` ..., the site's order
+        ledger, and people drawn with the site's own seed (:func:`site_seed`) so that two
+        sites' synthetic participants differ.
 
     Returns
     -------
@@ -212,7 +224,8 @@ def run_synthetic_study(
     proto = load_protocol(protocol) if isinstance(protocol, str | Path) else protocol
     population = population if population is not None else Population()
     db_path, work, rec = _paths(db, recordings)
-    codes = participant_codes(n)
+    codes = participant_codes(n, site)
+    place = Place(site)
 
     def waiting(pid: str) -> None:
         name = database_url(db) if is_server(db) else db_path.name
@@ -221,8 +234,12 @@ def run_synthetic_study(
     with _synth_locks(db, db_path, waiting):
         engine = open_database(db if is_server(db) else db_path)
         try:
-            merger = _study(engine, proto, db, codes, seed, force, work, rec, population, say)
-            jobs = [dataclasses.replace(j, record=record) for j in merger.jobs.values()]
+            merger = _study(
+                engine, proto, db, codes, seed, force, work, rec, population, say, place
+            )
+            jobs = [
+                dataclasses.replace(j, record=record, place=place) for j in merger.jobs.values()
+            ]
             _run_jobs(jobs, workers, merger.finish)
         finally:
             engine.dispose()
@@ -265,6 +282,7 @@ def _study(
     rec: Path,
     population: Population,
     say: Callable[[str], None],
+    place: Place,
 ) -> _Merger:
     """Under the synth lock: the participants still to run, their order slots reserved
     and the study's identity checked; the merger that takes them in."""
@@ -281,11 +299,13 @@ def _study(
     skipped = tuple(c for c in codes if c in merged)
     if skipped:
         say(f"{len(skipped)} participant(s) already in {Path(db).name}: skipped")
-    slots, more = reserve_slots(engine, proto, db, [codes[i] for i in todo], force=force)
+    slots, more = reserve_slots(
+        engine, proto, db, [codes[i] for i in todo], force=force, place=place
+    )
     work.mkdir(exist_ok=True)
     jobs = [
-        _job(i, codes[i], seed, proto, work=work, recordings=rec, population=population,
-             slot=slots[codes[i]])
+        _job(i, codes[i], site_seed(seed, place.site), proto, work=work, recordings=rec,
+             population=population, slot=slots[codes[i]], study_seed=seed)
         for i in todo
     ]  # fmt: skip
     return _Merger(
@@ -318,9 +338,11 @@ def _job(
     recordings: Path,
     population: Population,
     slot: int = 0,
+    study_seed: int | None = None,
 ) -> _Job:
-    """Participant ``index`` of a study seeded with ``seed``: its session seed, its
-    behaviour seed and its temporary database."""
+    """Participant ``index`` of a study (a site) seeded with ``seed``: its session seed,
+    its behaviour seed and its temporary database; ``study_seed`` (default ``seed``) is
+    the synthetic study's seed, recorded with the participant."""
     return _Job(
         index=index,
         code=code,
@@ -330,7 +352,7 @@ def _job(
         work_db=work / f"{code}.db",
         recordings=recordings,
         population=population,
-        study_seed=seed,
+        study_seed=seed if study_seed is None else study_seed,
         slot=slot,
     )
 

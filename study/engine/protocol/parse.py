@@ -1,7 +1,7 @@
 """Reading a protocol's TOML file into a :class:`~study.engine.protocol.types.Protocol`.
 
 Tables and fields (every one optional unless marked; unknown keys are refused):
-``[study]`` name (required), title, description, participants, seed;
+``[study]`` name (required), title, description, participants, seed, sites;
 ``[modes]`` names (required, >= 2, distinct), counterbalancing, hidden,
 ``[modes.settings.<mode>]``; ``[[phases]]`` kind, in the order they run ("main"
 required, with its scenario; ``[phases.after_trial]`` instrument, weights);
@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import hashlib
 import itertools
+import re
 from collections.abc import Collection, Mapping
 from pathlib import Path
 from typing import Any
@@ -71,6 +72,7 @@ from study.engine.protocol.types import (
 )
 from tasks.secondary import SecondarySettings
 
+SITE_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_-]{0,31}\Z")  # a site's name
 MAX_QUESTIONS = 1_000  # questions of a block, a baseline or a rehearsal
 MAX_ATTEMPTS = 100  # practice attempts, collisions allowed in one
 MAX_OFFSET = 1_000  # size of a near-miss offset of the secondary task's shown answer
@@ -405,9 +407,24 @@ def _study(r: FieldReader) -> StudyInfo:
         description=r.string("description", ""),
         participants=r.integer("participants", 18, minimum=1, maximum=MAX_PARTICIPANTS),
         seed=r.integer("seed", 0, minimum=0, maximum=MAX_SEED),
+        sites=_sites(r),
     )
     r.finish()
     return study
+
+
+def _sites(r: FieldReader) -> tuple[str, ...]:
+    """``[study] sites``: the names of a multi-site study's sites (each site keeps its
+    own counterbalancing ledger, docs/decisions.md), 1-32 letters, digits, ``_`` or ``-``."""
+    sites = _string_list(r, "sites", [])
+    for i, name in enumerate(sites):
+        if not SITE_PATTERN.match(name):
+            raise r.fail(
+                f"sites[{i}]",
+                f"must be 1-32 letters, digits, '_' or '-' starting with a letter or digit, "
+                f"got {name!r}",
+            )
+    return sites
 
 
 def _scoring(r: FieldReader) -> Scoring:

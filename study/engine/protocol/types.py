@@ -121,6 +121,7 @@ class StudyInfo:
     description: str
     participants: int  # default number of participants for planning
     seed: int  # study seed, stored with the data
+    sites: tuple[str, ...] = ()  # the sites of a multi-site study; () for one site
 
 
 @dataclass(frozen=True, slots=True)
