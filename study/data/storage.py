@@ -177,9 +177,7 @@ class SessionRow(Base):
     site: Mapped[str | None] = mapped_column(String(64))
     machine: Mapped[str | None] = mapped_column(String(128))
     # the session's key in every database it is pushed to (a UUID4; revision 0003)
-    uid: Mapped[str | None] = mapped_column(
-        String(36), default=new_uid, unique=True, index=True
-    )
+    uid: Mapped[str | None] = mapped_column(String(36), default=new_uid, unique=True, index=True)
 
     participant: Mapped[Participant] = relationship(back_populates="sessions")
 

@@ -305,8 +305,7 @@ def reserve_slots(
         check_site(db, place, study.sites or [], study.name)
         orders = _slot_orders(protocol, study, place.site)
         out = {
-            code: ledger.allocate(s, study.id, code, None, orders.row, place.site)
-            for code in codes
+            code: ledger.allocate(s, study.id, code, None, orders.row, place.site) for code in codes
         }
         for code, slot in out.items():
             _check_slot(slot, protocol, code)
@@ -362,9 +361,7 @@ def _open(
                 )
             if person is None:
                 _not_reserved_elsewhere(s, study, code, db, slot)
-                person = _new_person(
-                    s, study, protocol, code, participant, seed, slot, place.site
-                )
+                person = _new_person(s, study, protocol, code, participant, seed, slot, place.site)
             row = SessionRow(
                 participant_id=person.id,
                 site=place.site,

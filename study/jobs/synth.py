@@ -41,9 +41,9 @@ from study.data.storage import (
     is_server,
     open_database,
 )
+from study.engine.counterbalance import site_seed
 from study.engine.protocol import Protocol, load_protocol
 from study.engine.recognition import RecognitionTally
-from study.engine.counterbalance import site_seed
 from study.engine.session import derive_seed, reserve_slots, run_session
 from study.engine.sites import Place
 from study.participants.synthetic import Population, SyntheticParticipant
