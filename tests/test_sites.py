@@ -16,6 +16,7 @@ import pytest
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
+from analysis.data import load_study, tidy
 from study.data.dbtools import check
 from study.data.storage import OrderSlot, Participant, SessionRow, Study, open_database
 from study.engine.counterbalance import SlotOrders, balance, cycle_length, site_seed
@@ -222,6 +223,12 @@ def test_sessions_at_two_sites_from_the_command_line(tmp_path, seed):
     text = _asa("plan", "--db", db, cwd=tmp_path).stdout
     assert "3 order slots issued at 3 sites" in text and "site porto: no participant yet" in text
     assert text.index("site lyon: 2 slots") < text.index("site delft: 1 slots")
+    frames = tidy(load_study(db))  # the analysis sees each participant's site
+    people = frames.participants
+    assert dict(zip(people["participant"], people["site"], strict=True)) == {
+        "L01": "lyon", "D01": "delft", "L02": "lyon",
+    }  # fmt: skip
+    assert set(frames.trials["site"]) == {"lyon", "delft"}
 
 
 def test_a_synthetic_study_at_a_site(tmp_path, seed):

@@ -215,11 +215,14 @@ def tidy(data: StudyData) -> Frames:
 
 
 def _people(participant: pd.DataFrame) -> pd.DataFrame:
-    """participant_id, participant (code), kind, order_index, mode_order, order ("a > b")."""
+    """participant_id, participant (code), kind, order_index, mode_order, order ("a > b"),
+    site ("" without sites; a study from before revision 0003 has none)."""
     people = participant.rename(columns={"id": "participant_id", "code": "participant"})
+    site = people["site"] if "site" in people.columns else ""
     people = people[["participant_id", "participant", "kind", "order_index", "mode_order"]]
     return people.assign(
         order=[" > ".join(o or []) for o in people["mode_order"]],
+        site=site,
     )
 
 
@@ -258,7 +261,8 @@ def _aborted(main: pd.DataFrame, counted: pd.DataFrame) -> pd.DataFrame:
 
 
 def _trial_frame(counted: pd.DataFrame, collision_penalty_s: float) -> pd.DataFrame:
-    """One row per counted trial with the stored outcome metrics; score recomputed if absent."""
+    """One row per counted trial with the stored outcome metrics (and the participant's
+    site in a multi-site study); score recomputed if absent."""
     frame = pd.DataFrame(
         {
             "participant": counted["participant"].astype(str),
@@ -277,6 +281,8 @@ def _trial_frame(counted: pd.DataFrame, collision_penalty_s: float) -> pd.DataFr
             "clearance_min_m": counted["clearance_min_m"].astype(float),
         }
     ).reset_index(drop=True)
+    if (counted["site"] != "").any():  # a multi-site study: the site, e.g. a factor in R
+        frame.insert(1, "site", counted["site"].to_numpy())
     recomputed = frame["completion_time_s"] + collision_penalty_s * frame["collisions"]
     frame["score_s"] = frame["score_s"].fillna(recomputed)
     return frame
@@ -438,11 +444,13 @@ def _responses(r: pd.DataFrame, people: pd.DataFrame, level_of: dict) -> pd.Data
 
 
 def _participants(people: pd.DataFrame, frame: pd.DataFrame, modes: tuple) -> pd.DataFrame:
-    """One row per participant: kind, order, counted main trials, complete set of modes."""
+    """One row per participant: (site,) kind, order, counted main trials, complete set of
+    modes."""
     counts = frame.groupby("participant")["mode"].nunique()
-    participants = people.assign(participant=people["participant"].astype(str))[
-        ["participant", "kind", "order_index", "order"]
-    ].copy()
+    columns = ["participant", "kind", "order_index", "order"]
+    if (people["site"] != "").any():  # a multi-site study: each participant's site
+        columns.insert(1, "site")
+    participants = people.assign(participant=people["participant"].astype(str))[columns].copy()
     participants["main_trials"] = (
         participants["participant"].map(frame.groupby("participant").size()).fillna(0).astype(int)
     )

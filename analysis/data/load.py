@@ -47,7 +47,7 @@ _TEXT = {
     "trial": ("mode", "phase", "status", "scenario", "recording_path"),
     "sample": ("label", "target", "true_task", "true_target"),
     "response": ("instrument", "item", "text"),
-    "participant": ("code", "kind"),
+    "participant": ("code", "kind", "site"),
     "question": ("text",),
     "event": ("kind",),
 }
