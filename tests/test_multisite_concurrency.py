@@ -1,12 +1,14 @@
 """Concurrent sessions on one study database (issue 24): eight ``asa run`` processes,
-synthetic participants, started together on one PostgreSQL study and then on one SQLite
-study: every run ends well (no lock error reaches the user), no sample row is lost
-(each finished trial holds one sample per tick it ran), every order slot is issued once
-and ``asa db check`` is clean. On PostgreSQL a writer killed by SIGKILL mid-trial is
+synthetic participants, started together on one PostgreSQL study (four at each of two
+sites) and then on one SQLite study (no sites): every run ends well (no lock error reaches
+the user), no sample row is lost (each finished trial holds one sample per tick it ran),
+every order slot of each site's ledger is issued once, each site balanced, and ``asa db
+check`` is clean. On PostgreSQL a writer killed by SIGKILL mid-trial is
 resumed and its session completes."""
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
@@ -28,6 +30,7 @@ PROTOCOL = """
 name = "multisite"
 participants = 8
 seed = 11
+SITES
 
 [modes]
 names = ["manual", "reactive_bn"]
@@ -46,9 +49,10 @@ timeout_s = TIMEOUT
 """
 
 
-def _protocol(tmp_path: Path, timeout_s: float) -> str:
+def _protocol(tmp_path: Path, timeout_s: float, sites: tuple[str, ...] = ()) -> str:
     path = tmp_path / "multisite.toml"
-    path.write_text(PROTOCOL.replace("TIMEOUT", str(timeout_s)))
+    listed = f"sites = {json.dumps(list(sites))}" if sites else ""
+    path.write_text(PROTOCOL.replace("TIMEOUT", str(timeout_s)).replace("SITES", listed))
     return str(path)
 
 
@@ -61,7 +65,11 @@ def _run(protocol: str, db: str, code: str, *extra: str, cwd: Path) -> subproces
     )  # fmt: skip
 
 
-def _check_study(db: str, codes: list[str], *, balanced: bool = True) -> None:
+def _check_study(
+    db: str, codes: list[str], *, balanced: bool = True, sites: dict[str, str] | None = None
+) -> None:
+    """Clean, every session completed, every sample stored; each site's slots (``sites``:
+    code -> site; none: one ledger) issued once and balanced."""
     report = check(db, verify_recordings=False)
     assert report.clean, report.text()
     engine = open_database(db, create=False)
@@ -71,10 +79,14 @@ def _check_study(db: str, codes: list[str], *, balanced: bool = True) -> None:
             assert sorted(p.code for p in people) == sorted(codes)
             assert {r.status for r in s.scalars(select(SessionRow))} == {"completed"}
             slots = s.scalars(select(OrderSlot).order_by(OrderSlot.slot)).all()
-            assert [r.slot for r in slots] == list(range(len(codes)))  # each issued once
             assert sorted(r.code for r in slots) == sorted(codes)
-            orders = [p.mode_order for p in people]
-            assert balance(orders, scheme="full_permutation")["balanced"] == balanced
+            site_of = sites or {code: "" for code in codes}
+            for site in set(site_of.values()):
+                mine = [r for r in slots if r.site == site]
+                assert [r.slot for r in mine] == list(range(len(mine)))  # each issued once
+                assert {r.code for r in mine} == {c for c, x in site_of.items() if x == site}
+                orders = [p.mode_order for p in people if (p.site or "") == site]
+                assert balance(orders, scheme="full_permutation")["balanced"] == balanced
             for trial in s.scalars(select(Trial).where(Trial.status != "aborted")):
                 rows = s.scalar(
                     select(func.count()).select_from(Sample).where(Sample.trial_id == trial.id)
@@ -96,14 +108,20 @@ def _check_study(db: str, codes: list[str], *, balanced: bool = True) -> None:
 def test_eight_sessions_at_once(backend, tmp_path, request, monkeypatch):
     monkeypatch.chdir(tmp_path)  # a server study's recordings are in the working folder
     db = request.getfixturevalue("pg_url") if backend == "postgresql" else str(tmp_path / "s.db")
-    protocol = _protocol(tmp_path, 2.0)
     codes = [f"S{k + 1}" for k in range(SESSIONS)]
-    procs = [_run(protocol, db, code, cwd=tmp_path) for code in codes]
+    sites = (
+        {c: ("lyon", "delft")[k % 2] for k, c in enumerate(codes)} if backend != "sqlite" else {}
+    )
+    protocol = _protocol(tmp_path, 2.0, tuple(dict.fromkeys(sites.values())))
+    procs = [
+        _run(protocol, db, code, *(["--site", sites[code]] if sites else []), cwd=tmp_path)
+        for code in codes
+    ]
     for p in procs:
         _, err = p.communicate(timeout=900)
         assert p.returncode == 0, err
         assert "locked" not in err.lower() and "deadlock" not in err.lower(), err
-    _check_study(db, codes)
+    _check_study(db, codes, sites=sites or None)
 
 
 def _samples(db: str) -> int:
