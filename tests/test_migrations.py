@@ -24,7 +24,7 @@ from alembic.runtime.migration import MigrationContext
 from sqlalchemy.orm import Session
 
 from study.cli import main
-from study.data import schema
+from study.data import locks, schema
 from study.data.dbtools import check
 from study.data.storage import SCHEMA_VERSION, Base, SessionRow, open_database
 from study.engine.protocol import load_protocol
@@ -234,6 +234,22 @@ def test_an_old_database_is_refused_for_writing_with_the_upgrade_line(tmp_path, 
     code, _, err = asa(capsys, "db", "check", "--db", str(db), "--no-verify")
     assert code == 2 and line in err and len(err.strip().splitlines()) == 1
     assert db.read_bytes() == before
+
+
+def test_no_upgrade_under_a_running_session(tmp_path, capsys):
+    db = _v1_file(tmp_path)
+    con = sqlite3.connect(db)
+    con.execute("UPDATE session SET status = 'running'")  # P01's session, interrupted ...
+    con.commit()
+    con.close()
+    before = db.read_bytes()
+    with locks.held(locks.session_lock(db, "P01"), wait=False):  # ... and live again
+        code, _, err = asa(capsys, "db", "upgrade", "--db", str(db))
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert f"{db}: 1 session(s) are running (P01); upgrade when they have ended" in err
+    assert db.read_bytes() == before
+    code, out, err = asa(capsys, "db", "upgrade", "--db", str(db))  # interrupted: no holder
+    assert code == 0 and f"0001 -> {schema.head()}" in out, err
 
 
 def test_an_unknown_revision_is_refused(tmp_path, capsys):

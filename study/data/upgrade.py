@@ -15,7 +15,7 @@ from sqlalchemy import create_engine, inspect, select, text
 from sqlalchemy.engine import Connection, Engine
 from sqlalchemy.exc import ArgumentError, DBAPIError, NoSuchModuleError
 
-from study.data import schema
+from study.data import locks, schema, server_locks
 from study.data.dbfile import check_existing, is_url, probe
 from study.data.storage import (
     PG_STUDY_LOCK,
@@ -88,6 +88,36 @@ def _lock(conn: Connection) -> None:
         conn.execute(text("SELECT pg_advisory_xact_lock(:key)"), {"key": PG_STUDY_LOCK})
 
 
+def _live_writers(db: str | Path, conn: Connection) -> list[str]:
+    """The participants whose session a live process holds (a running ``asa run``), and
+    ``synth`` when a synthetic study is writing: read with plain SQL, whatever the
+    revision."""
+    codes = conn.execute(
+        text(
+            "SELECT DISTINCT p.code FROM session s JOIN participant p ON p.id = s.participant_id "
+            "WHERE s.status = 'running' ORDER BY p.code"
+        )
+    ).scalars()
+    if conn.dialect.name == "postgresql":
+        live = [c for c in codes if server_locks.is_held(conn, server_locks.session_lock(c))]
+        return live + (["synth"] if server_locks.is_held(conn, server_locks.SYNTH) else [])
+    path = database_file(db)
+    live = [c for c in codes if locks.is_held(locks.session_lock(path, c))]
+    return live + (["synth"] if locks.is_held(locks.synth_lock(path)) else [])
+
+
+def _refuse_live(db: str | Path, conn: Connection) -> None:
+    """Refuse to migrate under running sessions: the platform that runs them writes the
+    schema it knows (docs/decisions.md, "Schema migrations")."""
+    live = _live_writers(db, conn)
+    if live:
+        who = ", ".join("a synthetic study" if c == "synth" else c for c in live)
+        raise ValueError(
+            f"{db}: {len(live)} session(s) are running ({who}); upgrade when they have "
+            "ended (a running platform writes the schema it knows)"
+        )
+
+
 def _upgrade(db: str | Path, engine: Engine, to: str) -> tuple[str, str]:
     known = schema.revisions()
     target = schema.head() if to == "head" else to
@@ -104,6 +134,7 @@ def _upgrade(db: str | Path, engine: Engine, to: str) -> tuple[str, str]:
                 "no downgrade (restore a backup instead)"
             )
         if target != current or not schema.is_stamped(conn):
+            _refuse_live(db, conn)
             schema.upgrade_to(conn, target)
         conn.commit()
     return current, target
