@@ -110,8 +110,9 @@ def ledger(db: str | Path) -> dict[str, Any]:
     modes, status, released}`` in site and slot order; ``status`` is the holder's last
     session's, ``excluded``, ``reserved`` or ``no session``; ``released`` the codes of
     excluded earlier holders), the ``balance`` of the orders of the slots' holders
-    (:func:`balance`), None without any, and ``balance_by_site`` (site -> balance, {}
-    without sites).
+    (:func:`balance`; pooled over the sites of a multi-site study: positions and
+    carry-over, without the cycles, which are each site's), None without any, and
+    ``balance_by_site`` (site -> balance, {} without sites).
 
     Raises
     ------
@@ -135,8 +136,11 @@ def ledger(db: str | Path) -> dict[str, Any]:
         scheme = None
 
     def balanced(site: str | None) -> dict[str, Any] | None:
+        """The balance of a site's orders, or of every order (pooled over the sites: of
+        positions and carry-over only, the cycles being each site's)."""
         orders = [r.mode_order for r in rows if r.mode_order and site in (None, r.site)]
-        return balance(orders, scheme=scheme) if orders else None
+        pooled = site is None and bool(sites)
+        return balance(orders, scheme=None if pooled else scheme) if orders else None
 
     by_site = {site: balanced(site) for site in sites}
     return {
@@ -201,5 +205,8 @@ def format_ledger(result: dict[str, Any]) -> str:
             lines += _verdict(f"balanced for {result['scheme']} at {site}",
                               result["balance_by_site"].get(site))  # fmt: skip
     lines += [""] if result["balance"] is not None else []
-    lines += _verdict(f"balanced for {result['scheme']}", result["balance"])
+    pooled = "pooled over the sites, positions and carry-over balanced"
+    lines += _verdict(
+        pooled if result["sites"] else f"balanced for {result['scheme']}", result["balance"]
+    )
     return "\n".join(lines)
