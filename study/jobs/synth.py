@@ -30,7 +30,8 @@ from sim.limits import MAX_PARTICIPANTS, MAX_SEED
 from study.data import identity, locks, server_locks
 from study.data.dbfile import is_url, sqlite_url_file
 from study.data.dbtools import remove_recordings_of
-from study.data.merge import merge_participant, table_rows
+from study.data.merge import merge_participant
+from study.data.rows import table_rows
 from study.data.storage import (
     TRIAL_FINISHED,
     Base,
@@ -41,9 +42,9 @@ from study.data.storage import (
     is_server,
     open_database,
 )
+from study.engine.counterbalance import site_seed
 from study.engine.protocol import Protocol, load_protocol
 from study.engine.recognition import RecognitionTally
-from study.engine.counterbalance import site_seed
 from study.engine.session import derive_seed, reserve_slots, run_session
 from study.engine.sites import Place
 from study.participants.synthetic import Population, SyntheticParticipant
