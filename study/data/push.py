@@ -117,17 +117,23 @@ class PushReport:
             lines.append("everything was already there; nothing to do")
         else:
             lines.append(
-                f"{verb} {n['participants']} new participants, {n['participants_updated']} "
-                f"updated; {n['sessions']} sessions, {n['trials']} trials, {n['samples']} "
-                f"samples; {n['participants_already_there']} already there"
+                f"{verb} {count(n['participants'], 'new participant')}, "
+                f"{n['participants_updated']} updated; {count(n['sessions'], 'session')}, "
+                f"{count(n['trials'], 'trial')}, {count(n['samples'], 'sample')}; "
+                f"{n['participants_already_there']} already there"
             )
         if n["participants_held_back"]:
             lines.append(
-                f"{n['participants_held_back']} participants held back (a session still "
-                "running); a later push takes them once their sessions have ended"
+                f"{count(n['participants_held_back'], 'participant')} held back (a session "
+                "still running); a later push takes them once their sessions have ended"
             )
         lines += [*self.notes, self.recordings]
         return "\n".join(lines)
+
+
+def count(n: int, noun: str) -> str:
+    """``1 trial``, ``3 trials``."""
+    return f"{n} {noun}" + ("" if n == 1 else "s")
 
 
 def push(src: str | Path, dst: str | Path, *, dry_run: bool = False) -> PushReport:
@@ -170,8 +176,6 @@ def push(src: str | Path, dst: str | Path, *, dry_run: bool = False) -> PushRepo
             if not dry_run:
                 for plan in plans:
                     write_plan(conn, study_id, plan, _folders(src, dst))
-            else:
-                s.rollback()
         return _report(src, dst, dry_run, created, plans, study, notes)
     finally:
         if engine is not None:

@@ -97,7 +97,7 @@ def plan_person(
 def _held_back(here: PersonRows, running: list[dict[str, Any]], src: str | Path) -> Plan:
     """A participant with a session still running in the source: not pushed."""
     code = str(here.person["code"])
-    state = "live" if _live(src, code) else "interrupted: resume it with `asa run --resume`"
+    state = "live" if _live(src, code) else "interrupted: resume it with asa run ... --resume"
     uid = str(running[0]["uid"])[:8]
     detail = f"session {uid} is still running in {src} ({state}); a later push takes it"
     return Plan(here, "held back", detail=detail)
@@ -147,7 +147,7 @@ def _update(
     _check_new_uids(conn, plan, src, dst)
     if plan.sessions or plan.responses:
         plan.action = "updated"
-        words = [f"{added} new sessions"] if added else []
+        words = [f"{added} new session" + ("s" if added > 1 else "")] if added else []
         words += [f"session {u} replaced by its resumed state" for u in replaced]
         words += [f"{len(plan.responses)} responses"] if plan.responses else []
         plan.detail = "; ".join(words) + f" ({_counts(plan)})"
@@ -155,7 +155,12 @@ def _update(
 
 
 def _counts(plan: Plan) -> str:
-    return f"{len(plan.sessions)} sessions, {plan.trials} trials, {plan.samples} samples"
+    """``1 session, 3 trials, 106 samples``."""
+    return ", ".join(
+        f"{n} {noun}" + ("" if n == 1 else "s")
+        for n, noun in ((len(plan.sessions), "session"), (plan.trials, "trial"),
+                        (plan.samples, "sample"))
+    )  # fmt: skip
 
 
 def _check_new_uids(conn: Connection | None, plan: Plan, src: str | Path, dst: str | Path) -> None:
