@@ -13,11 +13,12 @@ inside an event's detail (``session_resumed``'s ``aborted_trials``) are read as 
 from __future__ import annotations
 
 import hashlib
+from array import array
 from collections import defaultdict
 from dataclasses import dataclass
 from typing import Any
 
-from sqlalchemy import Boolean, Float
+from sqlalchemy import Boolean, Float, Integer
 from sqlalchemy.engine import Connection
 
 from study.data.dbdiff import WALL_CLOCK_COLUMNS
@@ -133,23 +134,36 @@ def _strip(value: Any) -> Any:
 
 
 def _sample_digest(rows: list[tuple[Any, ...]]) -> str:
-    """A trial's samples as one SHA-256 over their values (trial id left out; SQLite's
-    0/1 read as booleans, every float column as a float), so both backends agree."""
+    """A trial's samples as their count and one SHA-256 over their values, column by
+    column (trial id left out; SQLite's 0/1 read as booleans, floats as IEEE doubles), so
+    both backends agree."""
     table = Base.metadata.tables["sample"]
-    names = sample_columns()
-    flags = [i for i, n in enumerate(names) if isinstance(table.c[n].type, Boolean)]
-    floats = [i for i, n in enumerate(names) if isinstance(table.c[n].type, Float)]
-    at = names.index("trial_id")
     h = hashlib.sha256()
-    for r in rows:
-        values = list(r)
-        values[at] = None
-        for k in flags:
-            values[k] = None if values[k] is None else bool(values[k])
-        for k in floats:
-            values[k] = None if values[k] is None else float(values[k])
-        h.update(repr(values).encode())
+    names = sample_columns()
+    columns = list(zip(*rows, strict=True)) or [()] * len(names)
+    for name, column in zip(names, columns, strict=True):
+        if name != "trial_id":
+            h.update(_column_bytes(table.c[name].type, column) + b"\x1e")
     return f"{len(rows)} rows, sha256 {h.hexdigest()[:12]}"
+
+
+def _column_bytes(kind: Any, values: tuple[Any, ...]) -> bytes:
+    """One sample column's values as bytes for :func:`_sample_digest`."""
+    if None in values:
+        return repr([None if v is None else _plain(kind, v) for v in values]).encode()
+    if isinstance(kind, Boolean):
+        return bytes(bool(v) for v in values)
+    if isinstance(kind, Float):
+        return array("d", values).tobytes()
+    if isinstance(kind, Integer):
+        return array("q", values).tobytes()
+    return "\x1f".join(map(str, values)).encode()
+
+
+def _plain(kind: Any, value: Any) -> Any:
+    return bool(value) if isinstance(kind, Boolean) else (
+        float(value) if isinstance(kind, Float) else value
+    )  # fmt: skip
 
 
 @dataclass(frozen=True, slots=True)
