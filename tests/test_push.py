@@ -339,3 +339,35 @@ def _tables(url: str) -> list[str]:
         return sqlalchemy.inspect(engine).get_table_names()
     finally:
         engine.dispose()
+
+
+def _stored(db: str | Path, query: str) -> list[tuple]:
+    engine = open_database(db, create=False)
+    try:
+        with engine.connect() as conn:
+            return [tuple(r) for r in conn.exec_driver_sql(query)]
+    finally:
+        engine.dispose()
+
+
+def test_recording_paths_and_platform_version(study, tmp_path, capsys):
+    """Into a file in another folder a recording path is rewritten relative to it (the
+    file is not copied); a site on another platform version is pushed, with a note."""
+    lyon = _copy(study["lyon"], tmp_path / "site" / "lyon.db")
+    with sqlite3.connect(lyon) as conn:
+        conn.execute("UPDATE trial SET recording_path = 'lyon_recordings/t' || id || '.rrd'")
+    hub = tmp_path / "hub" / "deep" / "study.db"
+    hub.parent.mkdir(parents=True)
+    report = _pushed(capsys, lyon, hub)
+    assert "not copied" in report["recordings"]
+    paths = {p for (p,) in _stored(hub, "SELECT recording_path FROM trial")}
+    assert paths and all(p.startswith("../../site/lyon_recordings/t") for p in paths), paths
+    assert not (hub.parent / "lyon_recordings").exists()
+    other = _copy(study["delft"], tmp_path / "delft" / "delft.db")
+    with sqlite3.connect(other) as conn:
+        conn.execute("UPDATE study SET platform_version = '0.0.1-site'")
+    code, out, err = asa(capsys, "db", "push", "--from", str(other), "--to", str(hub))
+    assert code == 0, err
+    assert "platform version 0.0.1-site" in out and "2 new participants" in out
+    (version,) = _stored(hub, "SELECT platform_version FROM study")[0]
+    assert version != "0.0.1-site"  # the destination keeps its own study row
