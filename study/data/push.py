@@ -165,7 +165,7 @@ def push(src: str | Path, dst: str | Path, *, dry_run: bool = False) -> PushRepo
     try:
         if engine is None:  # dry run into a destination without a study yet
             plans = [plan_person(None, None, rows, src, dst) for rows in people.values()]
-            return _report(src, dst, dry_run, True, plans, study, ())
+            return _report(src, dst, dry_run, True, plans, ())
         with Session(engine) as s, s.begin():
             if not dry_run:
                 lock_study(s)
@@ -176,7 +176,7 @@ def push(src: str | Path, dst: str | Path, *, dry_run: bool = False) -> PushRepo
             if not dry_run:
                 for plan in plans:
                     write_plan(conn, study_id, plan, _folders(src, dst))
-        return _report(src, dst, dry_run, created, plans, study, notes)
+        return _report(src, dst, dry_run, created, plans, notes)
     finally:
         if engine is not None:
             engine.dispose()
@@ -302,7 +302,6 @@ def _report(
     dry_run: bool,
     created: bool,
     plans: list[Plan],
-    study: dict[str, Any],
     notes: tuple[str, ...],
 ) -> PushReport:
     people = tuple(

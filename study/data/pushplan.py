@@ -97,17 +97,18 @@ def plan_person(
 def _held_back(here: PersonRows, running: list[dict[str, Any]], src: str | Path) -> Plan:
     """A participant with a session still running in the source: not pushed."""
     code = str(here.person["code"])
-    state = "live" if _live(src, code) else "interrupted: resume it with asa run ... --resume"
+    resume = "interrupted: resume it with asa run ... --resume"
+    state = {True: "live", False: resume, None: f"live, or {resume}"}[_live(src, code)]
     uid = str(running[0]["uid"])[:8]
     detail = f"session {uid} is still running in {src} ({state}); a later push takes it"
     return Plan(here, "held back", detail=detail)
 
 
-def _live(src: str | Path, code: str) -> bool:
+def _live(src: str | Path, code: str) -> bool | None:
     """Whether participant ``code``'s session in the SQLite file ``src`` is held by a live
-    process (its lock file); False for a server source (not known from here)."""
+    process (its lock file); None for a server source (not looked up)."""
     if is_server(src):
-        return False
+        return None
     return locks.is_held(locks.session_lock(database_file(src), code))
 
 
