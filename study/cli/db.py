@@ -1,6 +1,7 @@
 """``asa db check``: integrity and consistency of a study database
 (:func:`study.data.dbtools.check`); ``asa db diff``; ``asa db upgrade``: the schema
-migrations (:func:`study.data.upgrade.upgrade`)."""
+migrations (:func:`study.data.upgrade.upgrade`); ``asa db push``: a site's database into
+the study's (:func:`study.data.push.push`)."""
 
 from __future__ import annotations
 
