@@ -371,3 +371,31 @@ def test_recording_paths_and_platform_version(study, tmp_path, capsys):
     assert "platform version 0.0.1-site" in out and "2 new participants" in out
     (version,) = _stored(hub, "SELECT platform_version FROM study")[0]
     assert version != "0.0.1-site"  # the destination keeps its own study row
+
+
+def test_a_slot_reissued_after_an_exclusion_is_taken_over(study, tmp_path, capsys):
+    """L01 excluded at the site and pushed; the site gives its slot to L05 (the ledger's
+    reissue); the push hands the server's slot to L05, the earlier holder kept."""
+    protocol, rng = study["protocol"], study["rng"]
+    site = tmp_path / "site" / "lyon.db"
+    site.parent.mkdir()
+    _session(protocol, site, "L01", "lyon", rng, stop_at=int(rng.integers(5, 30)))
+    with sqlite3.connect(site) as conn:  # as a failed practice ends a session
+        conn.execute("UPDATE session SET note = 'excluded: a practice was not passed'")
+    hub = tmp_path / "hub.db"
+    _pushed(capsys, site, hub)
+    _session(protocol, site, "L05", "lyon", rng)
+    report = _pushed(capsys, site, hub)
+    assert {p["code"]: p["action"] for p in report["participants"]} == {
+        "L01": "already there", "L05": "pushed"}  # fmt: skip
+    rows = _stored(hub, "SELECT site, slot, code, released FROM order_slot")
+    assert len(rows) == 1 and rows[0][:3] == ("lyon", 0, "L05") and "L01" in rows[0][3]
+    code, out, err = asa(capsys, "db", "check", "--db", str(hub), "--no-verify")
+    assert code == 0 and "clean" in out, out + err
+    assert _views(hub) == _views(site)
+    assert not _pushed(capsys, site, hub)["changed"]
+    fresh = tmp_path / "fresh.db"  # both at once: the earlier holder's id remapped
+    _pushed(capsys, site, fresh)
+    (released,) = _stored(fresh, "SELECT released FROM order_slot")[0]
+    (l01,) = _stored(fresh, "SELECT id FROM participant WHERE code = 'L01'")[0]
+    assert json.loads(released)[0]["participant_id"] == l01

@@ -50,6 +50,7 @@ class PersonRows:
 
     person: dict[str, Any]
     slot: dict[str, Any] | None  # its order_slot row, if it holds one
+    released: dict[str, Any] | None  # the slot row it was released from (excluded), if any
     sessions: list[dict[str, Any]]
     trials: list[dict[str, Any]]
     events: list[dict[str, Any]]
@@ -90,7 +91,7 @@ def read_people(conn: Connection, codes: list[str] | None = None) -> dict[str, P
     events = table_rows(conn, "event", _within("session_id", [s["id"] for s in sessions]))
     questions = table_rows(conn, "question", _within("trial_id", tids))
     responses = table_rows(conn, "response", _within("participant_id", pids))
-    slots = table_rows(conn, "order_slot", _within("code", [p["code"] for p in people]))
+    slots = table_rows(conn, "order_slot")  # a row a participant: few
     out = {}
     for p in people:
         mine = {s["id"] for s in sessions if s["participant_id"] == p["id"]}
@@ -98,6 +99,10 @@ def read_people(conn: Connection, codes: list[str] | None = None) -> dict[str, P
         out[p["code"]] = PersonRows(
             person=p,
             slot=next((r for r in slots if r["code"] == p["code"]), None),
+            released=next(
+                (r for r in slots if p["code"] in {h.get("code") for h in r["released"] or []}),
+                None,
+            ),
             sessions=[s for s in sessions if s["id"] in mine],
             trials=own,
             events=[e for e in events if e["session_id"] in mine],
@@ -225,6 +230,9 @@ def person_difference(there: PersonRows, here: PersonRows) -> Difference | None:
         if there.person[name] != here.person[name]:
             return Difference(f"participant.{name}", "", there.person[name], here.person[name])
     slot_there, slot_here = _slot(there.slot), _slot(here.slot)
+    if here.slot is None and here.released is not None and there.slot is not None:
+        # excluded at the site, its slot reissued there: the new holder takes it over
+        slot_here = _slot(here.released)
     if slot_there != slot_here:
         return Difference("order_slot", "", slot_there, slot_here)
     return None
