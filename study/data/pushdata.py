@@ -268,27 +268,29 @@ def session_difference(
         return Difference("session.note", where, there.fields["note"], here.fields["note"])
     for key, trial in there.trials.items():
         mine = here.trials.get(key)
+        at = f"{where}, {trial_name(key)}"
         if mine is None:
-            return Difference("trial", f"{where}, {trial_name(key)}", "a trial", "none")
+            return Difference("trial", at, "a trial", "none")
         for name, value in trial.items():
             if value != mine[name]:
-                field = (
-                    name
-                    if name in ("sample", "question", "event", "response")
-                    else (f"trial.{name}")
-                )
-                return Difference(field, f"{where}, {trial_name(key)}", _few(value),
-                                  _few(mine[name]))  # fmt: skip
+                if isinstance(value, list):
+                    return _rows_difference(name, at, value, mine[name])
+                table = "" if name == "sample" else "trial."
+                return Difference(f"{table}{name}", at, value, mine[name])
     if not prefix and there.trials.keys() != here.trials.keys():
         extra = sorted(here.trials.keys() - there.trials.keys())
         return Difference("trial", where, "none", trial_name(extra[0]))
     events = here.events[: len(there.events)] if prefix else here.events
     if there.events != events:
-        return Difference("event", where, f"{len(there.events)} events",
-                          f"{len(here.events)} events")  # fmt: skip
+        return _rows_difference("event", where, there.events, events)
     return None
 
 
-def _few(value: Any) -> Any:
-    """A list of rows as its length (the messages stay one short line)."""
-    return f"{len(value)} rows" if isinstance(value, list) else value
+def _rows_difference(table: str, where: str, there: list[Any], here: list[Any]) -> Difference:
+    """The first difference of two lists of rows of ``table``: a column of a row (numbered
+    from 1), else their lengths (the messages stay one short line)."""
+    for k, (a, b) in enumerate(zip(there, here, strict=False)):
+        for name, value in a.items():
+            if value != b.get(name):
+                return Difference(f"{table}.{name}", f"{where}, row {k + 1}", value, b.get(name))
+    return Difference(table, where, f"{len(there)} rows", f"{len(here)} rows")
