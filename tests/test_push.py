@@ -285,6 +285,10 @@ def test_bad_input_is_one_line(study, tmp_path, capsys):
     _refused(capsys, lyon, lyon, "is the database being pushed")
     old = _copy(REPO / "tests" / "golden" / "v1_study.db", tmp_path / "v1" / "old.db")
     _refused(capsys, old, hub, "older than this platform", "asa db upgrade")
+    digest = _digest(old)
+    _refused(capsys, lyon, old, "older than this platform", "asa db upgrade")
+    code, _, err = asa(capsys, "db", "push", "--from", str(lyon), "--to", str(old), "--dry-run")
+    assert code == 2 and "asa db upgrade" in err and _digest(old) == digest
     assert not hub.exists()
     other = tmp_path / "other" / "other.db"
     other.parent.mkdir()
