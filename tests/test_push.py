@@ -29,8 +29,8 @@ from study.engine.sites import Place
 from study.participants import ScriptedParticipant
 
 REPO = Path(__file__).resolve().parents[1]
-# the smallest study with every kind of row (questions, TLX responses, two modes) at two
-# sites; trials end at a 2 s time limit
+# the smallest study with every kind of row (questions, responses outside and inside
+# trials, two modes) at two sites; trials end at a 2 s time limit
 MINI = """
 [study]
 name = "mini-push"
@@ -41,6 +41,10 @@ sites = ["lyon", "delft"]
 [modes]
 names = ["manual", "reactive_bn"]
 counterbalancing = "full_permutation"
+
+[[phases]]
+kind = "experience"
+instrument = "experience"
 
 [[phases]]
 kind = "baseline"
@@ -197,6 +201,11 @@ def test_two_sites_pushed_into_one_file_and_again(study, tmp_path, capsys, monke
     dry = _pushed(capsys, study["lyon"], hub, "--dry-run")
     assert dry["dry_run"] and dry["totals"]["participants"] == 3 and not hub.exists()
     _two_sites(capsys, study, hub, monkeypatch)
+    alone = tmp_path / "alone" / "lyon.db"
+    alone.parent.mkdir()
+    _pushed(capsys, study["lyon"], alone)  # a first push keeps every row as it was
+    code, out, err = asa(capsys, "db", "diff", str(study["lyon"]), str(alone))
+    assert code == 0 and "identical" in out, out + err
     twin = _copy(hub, tmp_path / "twin.db")
     digest = _digest(hub)
     dry = _pushed(capsys, study["lyon"], hub, "--dry-run")

@@ -29,14 +29,21 @@ def write_plan(conn: Connection, study_id: int | None, plan: Plan, folders: Fold
         _write_slot(conn, study_id, plan, pid)
     for session_id in plan.replace:
         _delete_session(conn, session_id)
-    _write_sessions(conn, pid, plan, folders)
-    # the responses outside trials (per session) added since the destination's
-    bulk_insert(conn, "response", [{**r, "participant_id": pid} for r in plan.responses])
+    trial_ids = _write_sessions(conn, pid, plan, folders)
+    # the responses of the written trials and those outside trials added since the
+    # destination's, in the source's order (a first push keeps the source's row order)
+    loose = {r["id"] for r in plan.responses}
+    responses = [
+        {**r, "participant_id": pid, "trial_id": trial_ids.get(r["trial_id"])}
+        for r in plan.rows.responses
+        if r["id"] in loose or r["trial_id"] in trial_ids
+    ]
+    bulk_insert(conn, "response", responses)
 
 
 def _write_sessions(conn: Connection, pid: int, plan: Plan, folders: Folders) -> dict[int, int]:
-    """Insert the plan's sessions with their trials, samples, events, questions and the
-    responses of their trials; returns source trial id -> destination trial id."""
+    """Insert the plan's sessions with their trials, samples, events and questions;
+    returns source trial id -> destination trial id."""
     rows = plan.rows
     session_ids = {
         s["id"]: insert_row(conn, "session", {**s, "participant_id": pid}) for s in plan.sessions
@@ -63,9 +70,6 @@ def _write_sessions(conn: Connection, pid: int, plan: Plan, folders: Folders) ->
     questions = [{**q, "trial_id": trial_ids[q["trial_id"]]}
                  for q in rows.questions if q["trial_id"] in trial_ids]  # fmt: skip
     bulk_insert(conn, "question", questions)
-    responses = [{**r, "participant_id": pid, "trial_id": trial_ids[r["trial_id"]]}
-                 for r in rows.responses if r["trial_id"] in trial_ids]  # fmt: skip
-    bulk_insert(conn, "response", responses)
     return trial_ids
 
 
