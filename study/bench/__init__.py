@@ -30,6 +30,7 @@ GROUPS: dict[str, str] = {
     "map_semantics": "study.bench.map_semantics",
     "storage": "study.bench.storage",
     "power": "study.bench.power",
+    "push": "study.bench.push",
 }
 
 

@@ -66,7 +66,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
     ),
     "replay": ("study.cli.replay:replay", "Open a trial's rerun recording, or --print it."),
     "run": ("study.cli.run:run", "One participant's session: a person, scripted or synthetic."),
-    "db": ("study.cli.db:db", "Study database tools: check integrity and consistency."),
+    "db": (
+        "study.cli.db:db",
+        "Study database tools: check, diff, upgrade, push a site's database.",
+    ),
     "export": ("study.cli.export:export_command", "Write one CSV per database table."),
     "report": (
         "study.cli.report:report_command",

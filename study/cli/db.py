@@ -1,6 +1,7 @@
 """``asa db check``: integrity and consistency of a study database
 (:func:`study.data.dbtools.check`); ``asa db diff``; ``asa db upgrade``: the schema
-migrations (:func:`study.data.upgrade.upgrade`)."""
+migrations (:func:`study.data.upgrade.upgrade`); ``asa db push``: a site's database into
+the study's (:func:`study.data.push.push`)."""
 
 from __future__ import annotations
 
@@ -106,3 +107,49 @@ def upgrade_command(db: str, to: str) -> None:
         click.echo(f"{db}: at schema revision {after} already; nothing to do")
     else:
         click.echo(f"{db}: schema revision {before} -> {after}")
+
+
+@db.command("push")
+@click.option(
+    "--from",
+    "src",
+    required=True,
+    metavar="PATH|URL",
+    help="The site's study database to push: a SQLite file or a SQLAlchemy URL.",
+)
+@click.option(
+    "--to",
+    "dst",
+    required=True,
+    metavar="PATH|URL",
+    help="The study database to push into (a new file or an empty server "
+    "database gets the schema and the study).",
+)
+@click.option("--dry-run", is_flag=True, help="Write nothing; say what a push would do.")
+@click.option("--json", "as_json", is_flag=True, help="One JSON object on stdout.")
+def push_command(src: str, dst: str, dry_run: bool, as_json: bool) -> None:  # fmt: skip
+    """Push a site's study database into the study's shared database (an offline site's
+    SQLite file into the server), in one transaction: participants not there are copied
+    with their order slots, new sessions of participants already there are added, a
+    session pushed aborted and since resumed is replaced by its newer state. Pushing the
+    same file again changes nothing. Participants with a session still running are held
+    back (one line each on stderr) for a later push. Rows are matched by participant
+    code and session uid, never by row ids. Recordings are not copied.
+
+    A participant that is there with other data (another order, seed, site, order slot,
+    or a session whose trials differ) is a conflict: one line naming the participant and
+    the field, exit status 2, and nothing is written.
+
+    Exit status 0 when pushed (or nothing to do), 2 on bad input or a conflict.
+
+    \b
+    Example:
+      asa db push --from lyon.db --to postgresql://asa@server/study
+    """
+    from study.data.push import push
+
+    report = push(src, dst, dry_run=dry_run)
+    for p in report.people:
+        if p.action == "held back":
+            click.echo(f"asa: {p.code} held back: {p.detail}", err=True)
+    click.echo(json.dumps(report.as_dict(), indent=2) if as_json else report.text())

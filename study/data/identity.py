@@ -21,12 +21,11 @@ class Mismatch:
 
     def words(self) -> str:
         return (
-            f"field '{self.field}': the study has {_show(self.stored)}, "
-            f"this run {_show(self.wanted)}"
+            f"field '{self.field}': the study has {show(self.stored)}, this run {show(self.wanted)}"
         )
 
 
-def _show(value: Any) -> str:
+def show(value: Any) -> str:
     """A value as the messages show it (a SHA-256 shortened to 12 hex digits)."""
     text = str(value)
     sha = len(text) == 64 and all(c in "0123456789abcdef" for c in text)
@@ -59,6 +58,6 @@ def check(
             + f"; give a new database file, or use {flag} to write into this study anyway"
         )
     return [
-        f"forced: {m.field} {_show(m.wanted)} differs from the study's {_show(m.stored)}"
+        f"forced: {m.field} {show(m.wanted)} differs from the study's {show(m.stored)}"
         for m in found
     ]

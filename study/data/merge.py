@@ -13,91 +13,14 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from sqlalchemy import Boolean, select
+from sqlalchemy import select
 from sqlalchemy.engine import Connection, Engine
 from sqlalchemy.orm import Session
 
 from study.data import identity
 from study.data.ledger import lock_study
+from study.data.rows import bulk_insert, copy_samples, insert_row, sample_tuples, table_rows
 from study.data.storage import Base, open_database
-
-_CHUNK = 5000  # rows per executemany when copying samples
-
-
-def table_rows(conn: Connection, table: str, where: Any = None) -> list[dict[str, Any]]:
-    """The rows of ``table`` in id order as dictionaries (``where(t)`` filters them)."""
-    t = Base.metadata.tables[table]
-    query = select(t).order_by(t.c.id)
-    if where is not None:
-        query = query.where(where(t))
-    return [dict(r._mapping) for r in conn.execute(query)]
-
-
-def _insert(conn: Connection, table: str, row: dict[str, Any]) -> int:
-    t = Base.metadata.tables[table]
-    values = {k: v for k, v in row.items() if k != "id"}
-    return int(conn.execute(t.insert().values(**values)).inserted_primary_key[0])
-
-
-def _bulk(conn: Connection, table: str, rows: list[dict[str, Any]]) -> None:
-    t = Base.metadata.tables[table]
-    for i in range(0, len(rows), _CHUNK):
-        chunk = [{k: v for k, v in r.items() if k != "id"} for r in rows[i : i + _CHUNK]]
-        if chunk:
-            conn.execute(t.insert(), chunk)
-
-
-def _sample_columns() -> list[str]:
-    return [c.name for c in Base.metadata.tables["sample"].columns if c.name != "id"]
-
-
-def _sample_tuples(conn: Connection) -> list[tuple[Any, ...]]:
-    """Every sample row (without ``id``, in id order) as the driver's plain tuples: the
-    bulk of a participant (some 16,000 rows), copied without per-row dictionaries."""
-    columns = ", ".join(f'"{c}"' for c in _sample_columns())
-    return list(conn.exec_driver_sql(f"SELECT {columns} FROM sample ORDER BY id"))
-
-
-def _copy_samples(
-    conn: Connection, samples: list[tuple[Any, ...]], trial_ids: dict[int, int]
-) -> None:
-    """Insert ``samples`` (from :func:`_sample_tuples`) with their trial ids remapped; the
-    stored values are those of the source rows (SQLite's own types, unconverted). Into a
-    server database the rows go through the table's types (SQLite's 0/1 become booleans)
-    as executemany-style ``insert()`` batches (SQLAlchemy's insertmanyvalues)."""
-    names = _sample_columns()
-    at = names.index("trial_id")
-    if conn.dialect.name != "sqlite":
-        _copy_samples_typed(conn, samples, trial_ids)
-        return
-    columns = ", ".join(f'"{c}"' for c in names)
-    marks = ", ".join("?" * len(names))
-    sql = f"INSERT INTO sample ({columns}) VALUES ({marks})"
-    for i in range(0, len(samples), _CHUNK):
-        chunk = [(*r[:at], trial_ids[r[at]], *r[at + 1 :]) for r in samples[i : i + _CHUNK]]
-        if chunk:
-            conn.exec_driver_sql(sql, chunk)
-
-
-def _copy_samples_typed(
-    conn: Connection, samples: list[tuple[Any, ...]], trial_ids: dict[int, int]
-) -> None:
-    """:func:`_copy_samples` into a server database: SQLite's 0/1 made booleans, the rows
-    inserted through the table as executemany-style batches (insertmanyvalues)."""
-    table = Base.metadata.tables["sample"]
-    names = _sample_columns()
-    flags = [i for i, n in enumerate(names) if isinstance(table.c[n].type, Boolean)]
-    at = names.index("trial_id")
-    for i in range(0, len(samples), _CHUNK):
-        chunk = []
-        for r in samples[i : i + _CHUNK]:
-            values = list(r)
-            values[at] = trial_ids[r[at]]
-            for k in flags:
-                values[k] = None if values[k] is None else bool(values[k])
-            chunk.append(dict(zip(names, values, strict=True)))
-        if chunk:
-            conn.execute(table.insert(), chunk)
 
 
 @dataclass(frozen=True, slots=True)
@@ -124,7 +47,7 @@ def _read_source(src: Path) -> _SourceRows:
                 people=table_rows(sc, "participant"),
                 sessions=table_rows(sc, "session"),
                 trials=table_rows(sc, "trial"),
-                samples=_sample_tuples(sc),
+                samples=sample_tuples(sc),
                 events=table_rows(sc, "event"),
                 questions=table_rows(sc, "question"),
                 responses=table_rows(sc, "response"),
@@ -142,7 +65,7 @@ def _study_id(conn: Connection, study: dict[str, Any], note: str) -> int:
     another identity is refused unless ``note`` (a forced run's) is given."""
     have = table_rows(conn, "study")
     if not have:
-        return _insert(conn, "study", study)
+        return insert_row(conn, "study", study)
     found = identity.mismatches(
         {k: have[0][k] for k in _IDENTITY}, {k: study[k] for k in _IDENTITY}
     )
@@ -195,7 +118,7 @@ def _insert_trials(
         path = t["recording_path"]
         if path:
             path = os.path.relpath((src_folder / path).resolve(), dst_folder.resolve())
-        trial_ids[t["id"]] = _insert(
+        trial_ids[t["id"]] = insert_row(
             conn,
             "trial",
             {
@@ -247,28 +170,28 @@ def merge_participant(
             select(pt.c.id).where(pt.c.study_id == study_id, pt.c.code == person["code"])
         ).first():
             raise ValueError(f"participant {person['code']} is already in the database")
-        pid = _insert(conn, "participant", {**person, "study_id": study_id})
+        pid = insert_row(conn, "participant", {**person, "study_id": study_id})
         _take_slot(conn, study_id, person["code"], pid, rows.slots)
         session_ids = {
-            r["id"]: _insert(conn, "session", _session(r, pid, note)) for r in rows.sessions
+            r["id"]: insert_row(conn, "session", _session(r, pid, note)) for r in rows.sessions
         }
         trial_ids = _insert_trials(conn, rows.trials, pid, session_ids, src_folder, dst_folder)
 
         def tid(value: int | None) -> int | None:
             return None if value is None else trial_ids[value]
 
-        _copy_samples(conn, rows.samples, trial_ids)
+        copy_samples(conn, rows.samples, trial_ids)
         events = [
             {**r, "session_id": session_ids[r["session_id"]], "trial_id": tid(r["trial_id"])}
             for r in rows.events
         ]
-        _bulk(conn, "event", events)
+        bulk_insert(conn, "event", events)
         questions = [{**r, "trial_id": trial_ids[r["trial_id"]]} for r in rows.questions]
-        _bulk(conn, "question", questions)
+        bulk_insert(conn, "question", questions)
         responses = [
             {**r, "participant_id": pid, "trial_id": tid(r["trial_id"])} for r in rows.responses
         ]
-        _bulk(conn, "response", responses)
+        bulk_insert(conn, "response", responses)
     return str(person["code"])
 
 

@@ -30,7 +30,8 @@ from sim.limits import MAX_PARTICIPANTS, MAX_SEED
 from study.data import identity, locks, server_locks
 from study.data.dbfile import is_url, sqlite_url_file
 from study.data.dbtools import remove_recordings_of
-from study.data.merge import merge_participant, table_rows
+from study.data.merge import merge_participant
+from study.data.rows import table_rows
 from study.data.storage import (
     TRIAL_FINISHED,
     Base,
