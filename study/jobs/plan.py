@@ -198,7 +198,8 @@ def format_ledger(result: dict[str, Any]) -> str:
         if site and not slots:
             lines += ["", f"site {site}: no participant yet"]
             continue
-        lines += ["", f"site {site}: {len(slots)} slots"] if site else [""]
+        n = f"{len(slots)} slot" + ("" if len(slots) == 1 else "s")
+        lines += ["", f"site {site}: {n}"] if site else [""]
         lines += ["slot  participant  row  status      order"]
         lines += [_ledger_line(r) for r in slots]
         if site:
