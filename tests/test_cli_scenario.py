@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from sim.scenario import available_scenarios
-from study.cli import main
+from tests.cli_helpers import asa
 
 ROOM = """
 name = "small_room"
@@ -91,17 +91,6 @@ SHOW_KEYS = {
     "counts",
 }
 COMPONENT_KEYS = {"id", "kind", "centre", "ends", "width", "normal", "points_count", "source"}
-
-
-def asa(capsys, *args: str) -> tuple[int, str, str]:
-    """Run `asa ARGS` in this process; return (exit status, stdout, stderr)."""
-    code = 0
-    try:
-        main([str(a) for a in args])
-    except SystemExit as stop:
-        code = stop.code if isinstance(stop.code, int) else 1
-    out = capsys.readouterr()
-    return code, out.out, out.err
 
 
 @pytest.fixture

@@ -23,13 +23,13 @@ from alembic.autogenerate import compare_metadata
 from alembic.runtime.migration import MigrationContext
 from sqlalchemy.orm import Session
 
-from study.cli import main
 from study.data import locks, schema
 from study.data.dbtools import check
 from study.data.storage import SCHEMA_VERSION, Base, SessionRow, open_database
 from study.engine.protocol import load_protocol
 from study.engine.session import run_session
 from study.participants import ScriptedParticipant
+from tests.cli_helpers import asa
 
 GOLDEN = Path(__file__).parent / "golden"
 # the columns revisions 0002 and 0003 add: (table, column)
@@ -45,18 +45,6 @@ def _golden_protocol(folder: Path) -> Path:
     path = folder / "v1-golden.toml"
     path.write_text(module.PROTOCOL, encoding="utf-8")
     return path
-
-
-def asa(capsys: pytest.CaptureFixture[str], *args: str) -> tuple[int, str, str]:
-    """Run the ``asa`` CLI in this process: (exit status, stdout, stderr)."""
-    capsys.readouterr()
-    try:
-        main(list(args))
-        code = 0
-    except SystemExit as exit_:
-        code = int(exit_.code or 0)
-    out = capsys.readouterr()
-    return code, out.out, out.err
 
 
 def _differences(db: str) -> set[tuple[str, str, str]]:

@@ -17,7 +17,6 @@ from sqlalchemy import inspect, select
 from sqlalchemy.orm import Session
 
 from analysis.data.load import load_study
-from study.cli import main
 from study.data.dbfile import ro_uri
 from study.data.storage import (
     SCHEMA_VERSION,
@@ -28,21 +27,11 @@ from study.data.storage import (
     database_url,
     open_database,
 )
+from tests.cli_helpers import asa
 
 SMALL = FixtureSettings(
     n_participants=2, samples=40, questions=4, baseline_questions=4, incomplete=False
 )
-
-
-def asa(capsys: pytest.CaptureFixture[str], *args: str) -> tuple[int, str, str]:
-    """Run ``asa args`` in this process: (exit status, stdout, stderr)."""
-    try:
-        main(list(args))
-        code = 0
-    except SystemExit as stop:
-        code = int(stop.code or 0)
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def one_line_error(code: int, err: str) -> str:

@@ -18,7 +18,6 @@ import pytest
 import sqlalchemy
 from sqlalchemy.orm import Session
 
-from study.cli import main
 from study.data import server_locks
 from study.data.dbtools import check
 from study.data.storage import Study, get_study, open_database
@@ -26,6 +25,7 @@ from study.engine.protocol import load_protocol
 from study.engine.session import run_session
 from study.jobs.synth import run_synthetic_study
 from study.participants import ScriptedParticipant
+from tests.cli_helpers import asa
 
 pytestmark = pytest.mark.postgres
 
@@ -67,17 +67,6 @@ def _asa(*args: str, cwd: Path) -> subprocess.CompletedProcess:
         [sys.executable, "-m", "study.cli", *args],
         capture_output=True, text=True, timeout=600, cwd=cwd, env=env,
     )  # fmt: skip
-
-
-def asa(capsys: pytest.CaptureFixture[str], *args: str) -> tuple[int, str, str]:
-    """``asa args`` in this process: (exit status, stdout, stderr)."""
-    try:
-        main(list(args))
-        code = 0
-    except SystemExit as stop:
-        code = int(stop.code or 0)
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def _csv_rows(folder: Path) -> dict[str, list[list[str]]]:

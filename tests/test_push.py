@@ -19,7 +19,6 @@ import numpy as np
 import pytest
 from sqlalchemy import func, select
 
-from study.cli import main
 from study.data.pushdata import read_people, session_views
 from study.data.storage import Base, open_database
 from study.engine.clocks import ExperimenterControl
@@ -27,6 +26,7 @@ from study.engine.protocol import load_protocol
 from study.engine.session import run_session
 from study.engine.sites import Place
 from study.participants import ScriptedParticipant
+from tests.cli_helpers import asa
 
 REPO = Path(__file__).resolve().parents[1]
 # the smallest study with every kind of row (questions, responses outside and inside
@@ -66,17 +66,6 @@ weights = "raw"
 
 class _Crash(Exception):
     """A machine going down mid-trial."""
-
-
-def asa(capsys: pytest.CaptureFixture[str], *args: str) -> tuple[int, str, str]:
-    """``asa args`` in this process: (exit status, stdout, stderr)."""
-    try:
-        main(list(args))
-        code = 0
-    except SystemExit as stop:
-        code = int(stop.code or 0)
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def _session(protocol, db: Path, code: str, site: str, rng, *, stop_at: int | None = None,
