@@ -26,37 +26,10 @@ from study.engine.protocol import load_protocol
 from study.engine.session import run_session
 from study.jobs.synth import run_synthetic_study
 from study.participants.scripted import ScriptedParticipant
+from tests.mini_protocol import mini_protocol
 
 # the smallest study that still has questionnaires: two main trials of 2 s, no camera
-MINI = """
-[study]
-name = "mini"
-participants = 4
-seed = 5
-
-[modes]
-names = ["manual", "reactive_bn"]
-counterbalancing = "full_permutation"
-
-[recording]
-camera_hz = 0
-
-[[phases]]
-kind = "experience"
-instrument = "experience"
-
-[[phases]]
-kind = "main"
-scenario = "practice_course"
-route = ["A", "B"]
-inspection = false
-secondary = false
-timeout_s = 2.0
-
-[phases.after_trial]
-instrument = "nasa_tlx"
-weights = "raw"
-"""
+MINI = mini_protocol(camera_hz=0, experience=True, tlx=True)
 
 RUN_CODES = ("golf", "x7y", "P000", "hotel-2")  # codes of every shape, beside P01..P04
 

@@ -22,29 +22,7 @@ from study.engine.counterbalance import SlotOrders, balance, cycle_length
 from study.engine.protocol import parse_protocol
 from study.engine.session import _open, check_code, reserve_slots
 from study.participants.scripted import ScriptedParticipant
-
-PROTOCOL = """
-[study]
-name = "ledger"
-participants = 6
-seed = {seed}
-
-[modes]
-names = ["manual", "reactive_bn", "contextual_task"]
-counterbalancing = "{scheme}"
-
-[[phases]]
-kind = "experience"
-instrument = "experience"
-
-[[phases]]
-kind = "main"
-scenario = "practice_course"
-route = ["A", "B"]
-inspection = false
-secondary = false
-timeout_s = 2.0
-"""
+from tests.mini_protocol import mini_protocol
 
 # codes of every shape check_code allows: pseudonyms (more than 7 without digits), digits in
 # the middle, leading zeros, zero, huge numbers, only digits, '-' and '_'
@@ -56,9 +34,20 @@ CODES = (
 SCHEMES = ("full_permutation", "williams", "random")
 
 
+def _text(scheme: str, seed: int) -> str:
+    return mini_protocol(
+        name="ledger",
+        participants=6,
+        seed=seed % 1000,
+        modes=("manual", "reactive_bn", "contextual_task"),
+        scheme=scheme,
+        experience=True,
+    )
+
+
 def _protocol(tmp_path: Path, scheme: str, seed: int):
     path = tmp_path / f"{scheme}.toml"
-    path.write_text(PROTOCOL.format(scheme=scheme, seed=seed % 1000))
+    path.write_text(_text(scheme, seed))
     return parse_protocol(path.read_text(), str(path))
 
 
@@ -121,8 +110,10 @@ def test_an_excluded_participants_slot_is_reissued_first(tmp_path, seed):
     assert not _ledger_problems(db)
     listed = subprocess.run(
         [sys.executable, "-m", "study.cli", "plan", "--db", str(db)],
-        capture_output=True, text=True, timeout=120,
-    )  # fmt: skip
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert listed.returncode == 0, listed.stderr
     assert "(released by hotel)" in listed.stdout and "5 order slots issued" in listed.stdout
     line = next(x for x in listed.stdout.splitlines() if x.strip().startswith("2  india"))
@@ -180,7 +171,7 @@ def test_db_check_finds_interrupted_sessions_missing_questionnaires_and_stale_sl
 # test_concurrent_writers.py::test_two_synths_and_four_runs_on_one_study
 def test_concurrent_processes_never_share_a_slot(tmp_path, seed):
     path = tmp_path / "williams.toml"
-    path.write_text(PROTOCOL.format(scheme="williams", seed=seed % 1000))
+    path.write_text(_text("williams", seed))
     db = tmp_path / "s.db"
     open_database(db).dispose()
     script = (

@@ -8,7 +8,6 @@ resumed and its session completes."""
 
 from __future__ import annotations
 
-import json
 import os
 import signal
 import subprocess
@@ -23,36 +22,17 @@ from sqlalchemy.orm import Session
 from study.data.dbtools import check
 from study.data.storage import OrderSlot, Participant, Sample, SessionRow, Trial, open_database
 from study.engine.counterbalance import balance
+from tests.mini_protocol import mini_protocol
 
 SESSIONS = 8
-PROTOCOL = """
-[study]
-name = "multisite"
-participants = 8
-seed = 11
-SITES
-
-[modes]
-names = ["manual", "reactive_bn"]
-counterbalancing = "full_permutation"
-
-[recording]
-camera_hz = 0
-
-[[phases]]
-kind = "main"
-scenario = "practice_course"
-route = ["A", "B"]
-inspection = false
-secondary = false
-timeout_s = TIMEOUT
-"""
 
 
 def _protocol(tmp_path: Path, timeout_s: float, sites: tuple[str, ...] = ()) -> str:
     path = tmp_path / "multisite.toml"
-    listed = f"sites = {json.dumps(list(sites))}" if sites else ""
-    path.write_text(PROTOCOL.replace("TIMEOUT", str(timeout_s)).replace("SITES", listed))
+    path.write_text(
+        mini_protocol(name="multisite", participants=8, seed=11, sites=sites, camera_hz=0,
+                      timeout_s=timeout_s)
+    )  # fmt: skip
     return str(path)
 
 

@@ -26,38 +26,14 @@ from study.engine.session import run_session
 from study.jobs.synth import run_synthetic_study
 from study.participants import ScriptedParticipant
 from tests.cli_helpers import asa
+from tests.mini_protocol import mini_protocol
 
 pytestmark = pytest.mark.postgres
 
 REPO = Path(__file__).resolve().parents[1]
 
 # the smallest study with every kind of row: questions, TLX responses, two modes
-MINI = """
-[study]
-name = "mini-pg"
-participants = 2
-seed = 5
-
-[modes]
-names = ["manual", "reactive_bn"]
-counterbalancing = "full_permutation"
-
-[[phases]]
-kind = "baseline"
-questions = 3
-
-[[phases]]
-kind = "main"
-scenario = "practice_course"
-route = ["A", "B"]
-inspection = false
-secondary = false
-timeout_s = 60.0
-
-[phases.after_trial]
-instrument = "nasa_tlx"
-weights = "raw"
-"""
+MINI = mini_protocol(name="mini-pg", participants=2, baseline_questions=3, timeout_s=60.0, tlx=True)
 
 
 def _asa(*args: str, cwd: Path) -> subprocess.CompletedProcess:

@@ -27,41 +27,14 @@ from study.engine.session import run_session
 from study.engine.sites import Place
 from study.participants import ScriptedParticipant
 from tests.cli_helpers import asa
+from tests.mini_protocol import mini_protocol
 
 REPO = Path(__file__).resolve().parents[1]
 # the smallest study with every kind of row (questions, responses outside and inside
 # trials, two modes) at two sites; trials end at a 2 s time limit
-MINI = """
-[study]
-name = "mini-push"
-participants = 4
-seed = 5
-sites = ["lyon", "delft"]
-
-[modes]
-names = ["manual", "reactive_bn"]
-counterbalancing = "full_permutation"
-
-[[phases]]
-kind = "experience"
-instrument = "experience"
-
-[[phases]]
-kind = "baseline"
-questions = 1
-
-[[phases]]
-kind = "main"
-scenario = "practice_course"
-route = ["A", "B"]
-inspection = false
-secondary = false
-timeout_s = 2.0
-
-[phases.after_trial]
-instrument = "nasa_tlx"
-weights = "raw"
-"""
+MINI = mini_protocol(
+    name="mini-push", sites=("lyon", "delft"), experience=True, baseline_questions=1, tlx=True
+)
 
 
 class _Crash(Exception):

@@ -24,35 +24,23 @@ from study.engine.protocol import parse_protocol
 from study.engine.session import _open
 from study.engine.sites import Place
 from study.participants.scripted import ScriptedParticipant
+from tests.mini_protocol import mini_protocol
 
 ROOT = Path(__file__).resolve().parents[1]
 SITES = ("lyon", "delft", "porto")
-PROTOCOL = """
-[study]
-name = "multisite"
-participants = 6
-seed = {seed}
-sites = {sites}
-
-[modes]
-names = ["manual", "reactive_bn", "contextual_task"]
-counterbalancing = "{scheme}"
-
-[recording]
-camera_hz = 0
-
-[[phases]]
-kind = "main"
-scenario = "practice_course"
-route = ["A", "B"]
-inspection = false
-secondary = false
-timeout_s = 1.0
-"""
 
 
 def _text(seed: int, scheme: str = "williams", sites: tuple[str, ...] = SITES) -> str:
-    return PROTOCOL.format(seed=seed % 1000, scheme=scheme, sites=json.dumps(list(sites)))
+    return mini_protocol(
+        name="multisite",
+        participants=6,
+        seed=seed % 1000,
+        sites=sites,
+        modes=("manual", "reactive_bn", "contextual_task"),
+        scheme=scheme,
+        camera_hz=0,
+        timeout_s=1.0,
+    )
 
 
 def _protocol(tmp_path: Path, seed: int, scheme: str = "williams", sites=SITES):
@@ -64,9 +52,16 @@ def _protocol(tmp_path: Path, seed: int, scheme: str = "williams", sites=SITES):
 def _new(engine, protocol, db, code, seed, site, machine="rig-1"):
     who = ScriptedParticipant(np.random.default_rng(seed))
     opened = _open(
-        engine, protocol, code, db, who, seed=seed, resume=False, force=False,
+        engine,
+        protocol,
+        code,
+        db,
+        who,
+        seed=seed,
+        resume=False,
+        force=False,
         place=Place(site, machine),
-    )  # fmt: skip
+    )
     return opened.person
 
 
@@ -80,8 +75,12 @@ def _asa(*args: str, cwd: Path, env: dict[str, str] | None = None) -> subprocess
     environment.update({"PYTHONPATH": str(ROOT), **(env or {})})
     return subprocess.run(
         [sys.executable, "-m", "study.cli", *args],
-        capture_output=True, text=True, cwd=cwd, env=environment, timeout=300,
-    )  # fmt: skip
+        capture_output=True,
+        text=True,
+        cwd=cwd,
+        env=environment,
+        timeout=300,
+    )
 
 
 @pytest.mark.parametrize("scheme", ["williams", "full_permutation", "random"])
