@@ -45,3 +45,27 @@ def pg_url(pg_server) -> str:
     """The URL of a fresh, empty database on the session's PostgreSQL server
     (``postgresql+psycopg://asa@127.0.0.1:<port>/t_<n>``)."""
     return pg_server.new_database()
+
+
+@pytest.fixture(scope="session")
+def generated_report(tmp_path_factory):
+    """One generated study (tests/fixtures_db.py, six participants) and its report of every
+    metric, built once for test_report.py and test_report_presentation.py (~15 s each):
+    ``(db, paths, out, progress_lines)``."""
+    import sys
+    from pathlib import Path
+
+    from analysis.report import build_report
+
+    sys.path.insert(0, str(Path(__file__).parent))
+    from fixtures_db import REPORT_STUDY, make_study_db
+
+    seed = int(os.environ.get("ASA_TEST_SEED", "20261123"))  # as the seed fixture
+    db = make_study_db(
+        tmp_path_factory.mktemp("study") / "study.db", np.random.default_rng(seed),
+        settings=REPORT_STUDY,
+    )  # fmt: skip
+    out = tmp_path_factory.mktemp("report")
+    lines: list[str] = []
+    paths = build_report(db, out, progress=lines.append)
+    return db, paths, out, lines

@@ -321,6 +321,11 @@ def _main_trial(s, rng, cfg, person, session, ordinal, mode, *, attempt, aborted
     return trial
 
 
+# the study of test_report.py and test_report_presentation.py (tests/conftest.py's
+# generated_report, whose report of every metric they share)
+REPORT_STUDY = FixtureSettings(n_participants=6, samples=100, questions=12, baseline_questions=20)
+
+
 def make_study_db(
     path: str | Path,
     rng: np.random.Generator,

@@ -6,7 +6,6 @@ CSV-folder input, and the bad-input contract (one stderr line, exit 2)."""
 from __future__ import annotations
 
 import json
-import os
 import sqlite3
 import sys
 from dataclasses import replace
@@ -19,33 +18,26 @@ from markupsafe import escape
 from analysis.data import load_study, tidy
 from analysis.metrics import BY_NAME, long_frame
 from analysis.presentation import without_constant_levels
-from analysis.report import analysis_frame, build_report
+from analysis.report import analysis_frame
 from analysis.stats import analyse
 from analysis.tables import apa_anova
 from study.cli import main
 from study.data.dbtools import export
 
 sys.path.insert(0, str(Path(__file__).parent))
-from fixtures_db import FixtureSettings, make_study_db  # noqa: E402
+from fixtures_db import REPORT_STUDY, make_study_db  # noqa: E402
 
-SETTINGS = FixtureSettings(n_participants=6, samples=100, questions=12, baseline_questions=20)
-
-
-def _seed() -> int:
-    return int(os.environ.get("ASA_TEST_SEED", "20261123"))
+SETTINGS = REPORT_STUDY
 
 
 @pytest.fixture(scope="module")
-def study_db(tmp_path_factory) -> Path:
-    path = tmp_path_factory.mktemp("study") / "study.db"
-    return make_study_db(path, np.random.default_rng(_seed()), settings=SETTINGS)
+def study_db(generated_report) -> Path:
+    return generated_report[0]  # tests/conftest.py: shared with test_report_presentation.py
 
 
 @pytest.fixture(scope="module")
-def report(study_db, tmp_path_factory):
-    out = tmp_path_factory.mktemp("report")
-    lines: list[str] = []
-    paths = build_report(study_db, out, progress=lines.append)
+def report(generated_report):
+    _, paths, out, lines = generated_report
     return paths, out, lines
 
 

@@ -9,10 +9,7 @@ import os
 import re
 import shutil
 import subprocess
-import sys
-from pathlib import Path
 
-import numpy as np
 import pandas as pd
 import pytest
 from markupsafe import escape
@@ -20,22 +17,14 @@ from markupsafe import escape
 from analysis.figures import metric_figure, paths_figure
 from analysis.metrics import BY_NAME
 from analysis.presentation import GLOSSARY, synthetic_banner, table_one, without_constant_levels
-from analysis.report import build_report
 from analysis.tables import format_p
-
-sys.path.insert(0, str(Path(__file__).parent))
-from fixtures_db import FixtureSettings, make_study_db  # noqa: E402
-
-SETTINGS = FixtureSettings(n_participants=6, samples=60, questions=8, baseline_questions=10)
 
 
 @pytest.fixture(scope="module")
-def built(tmp_path_factory):
-    seed = os.environ.get("ASA_TEST_SEED", "20261123")  # as the seed fixture
-    folder = tmp_path_factory.mktemp("presentation")
-    db = make_study_db(folder / "s.db", np.random.default_rng(int(seed)), settings=SETTINGS)
-    paths = build_report(db, folder / "report")
-    return paths, folder / "report", paths.html.read_text(encoding="utf-8")
+def built(generated_report):
+    """The report of every metric that test_report.py reads too (tests/conftest.py)."""
+    _, paths, out, _ = generated_report
+    return paths, out, paths.html.read_text(encoding="utf-8")
 
 
 def test_synthetic_participants_carry_a_banner(built):

@@ -80,9 +80,14 @@ text = "Done."
 """
 
 
-def _protocol(tmp_path: Path, seed: int, timeout_s: float = 4.0) -> Path:
+def _protocol(
+    tmp_path: Path, seed: int, timeout_s: float = 4.0, *, without: tuple[str, ...] = ()
+) -> Path:
+    """The protocol file, leaving out the phases of the kinds ``without``."""
+    head, *phases = PROTOCOL.format(seed=seed % 1000, timeout_s=timeout_s).split("[[phases]]\n")
+    kept = [p for p in phases if not any(p.startswith(f'kind = "{k}"\n') for k in without)]
     path = tmp_path / "terminal.toml"
-    path.write_text(PROTOCOL.format(seed=seed % 1000, timeout_s=timeout_s), encoding="utf-8")
+    path.write_text("[[phases]]\n".join([head, *kept]), encoding="utf-8")
     return path
 
 
@@ -282,7 +287,11 @@ def _running_samples(db: Path) -> int:
 def test_ctrl_c_of_a_background_run_prints_the_trial_and_a_resume_command_that_works(
     tmp_path, seed
 ):
-    protocol, db = _protocol(tmp_path, seed), tmp_path / "k.db"
+    # without the training and practice trials (10 s paced by the wall clock before the
+    # first main trial): test_sigint_handler_is_installed_for_the_run_and_restored_after and
+    # the timeouts test above run them
+    protocol = _protocol(tmp_path, seed, without=("training", "practice"))
+    db = tmp_path / "k.db"
     args = ["run", "--protocol", str(protocol), "--participant", "P01", "--db", str(db),
             "--headless", "--seed", str(seed % 10_000)]  # fmt: skip
     env = {**os.environ, "SDL_VIDEODRIVER": "dummy"}
