@@ -80,9 +80,7 @@ def _check_study(
     "backend",
     [
         pytest.param("postgresql", marks=pytest.mark.postgres),
-        # slow: on SQLite, CI's test of concurrent writers is test_concurrent_writers.py's
-        # two synths and four runs on one study
-        pytest.param("sqlite", marks=pytest.mark.slow),
+        "sqlite",
     ],
 )
 def test_eight_sessions_at_once(backend, tmp_path, request, monkeypatch):
