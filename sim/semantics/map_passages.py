@@ -1,33 +1,13 @@
 """Doorways and gaps found in an occupancy map image (thesis appendix Alg. 5, adapted;
-spec section 6).
-
-Alg. 5 pairs parts of the objects' contours (24 azimuth sectors each) a passage width
-apart; here the parts are the contour pieces around each boundary cell (why:
-docs/decisions.md, issue 23), and a pair is kept as the exact-geometry derivation
-(:mod:`sim.semantics.passages`) keeps a pair of shapes:
-
-1. candidates: pairs of boundary cells whose clear width, the distance between their
-   centres, lies in ``scenario.semantics.passage_width`` (Alg. 5, line 16; a surface lies
-   anywhere in its boundary cell, on average at its centre);
-2. closest points: no boundary cell within ``NEIGHBOUR_M`` of one end is nearer the
-   other end (so not a corner's diagonal, not two cells along one wall);
-3. a free line: at least ``FREE_SHARE`` of the cells between them free, leaving out the
-   ``END_CELLS`` next to each end (the ends' own staircase; Alg. 5, lines 21-29);
-4. not two legs of one table (that opening is the dock);
-5. stretches: candidates whose two ends together (the 4-vector of both) lie within
-   ``STRETCH_LINK_M`` of another's are one stretch (parallel faces give a run of equal
-   pairs); its passage lies at the mean of its narrowest pairs, the midpoint of a
-   stretch of closest points as in the geometry;
-6. the geometry's checks on that passage: its centre inside the bounds and at least half
-   the width less ``CENTRE_TOLERANCE_M`` from every obstacle (its ends are the nearest
-   obstacles: a skewed pair of noisy cells past a third obstacle is no opening); hemmed
-   in along its crossing normal for at most ``MAX_PASSAGE_DEPTH_M`` (probe lines that
-   graze an occupied cell count, as in the geometry); the robot fits on both
-   sides (the geometry asks it of gaps only; in a map, furniture against a wall is part
-   of the wall, and the pocket beside it would pass for a doorway);
-7. passages closer than ``MERGE_DISTANCE_M`` merged, the narrowest kept (Alg. 5).
-
-Between two wall blobs it is a doorway, else a gap.
+spec section 6). The parts Alg. 5 pairs are boundary cells, not 24 azimuth sectors, and a
+pair is kept as the exact-geometry derivation (:mod:`sim.semantics.passages`) keeps a pair
+of shapes; the rules and why are in docs/decisions.md ("Semantic components from a map
+image"). In order: candidate pairs a passage width apart (:func:`_candidates`), closest
+points within ``NEIGHBOUR_M``, a line at least ``FREE_SHARE`` free, not two legs of one
+table, stretches (``STRETCH_LINK_M``), the geometry's checks (centre clearance,
+``MAX_PASSAGE_DEPTH_M``, room for the robot on both sides), then near passages merged
+as the geometry merges them (:func:`sim.semantics.passages._merge`). Between two wall
+blobs it is a doorway, else a gap.
 """
 
 from __future__ import annotations
