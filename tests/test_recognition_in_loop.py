@@ -3,6 +3,9 @@ task a primitive performs on a component, and the trial outcome that carries bot
 
 from __future__ import annotations
 
+import hashlib
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -62,12 +65,16 @@ def test_tally_counts_agree_with_a_direct_count(rng):
 def test_tally_survives_its_summary_and_merges_additively(rng):
     table = {"la": "a", "lb": "b"}
     rows = _random_rows(rng, 300)
-    whole = RecognitionTally(table).add_rows(rows)
+    whole = RecognitionTally(table).add_rows(rows).summary()
     halves = RecognitionTally(table).add_rows(rows[:120])
     halves.merge(
         RecognitionTally.from_summary(RecognitionTally(table).add_rows(rows[120:]).summary())
     )
-    assert halves.summary() == whole.summary()
+    merged = halves.summary()
+    # the deciles are per trial (here two trials against one): compared in test_tally_assist
+    assert {k: v for k, v in merged.items() if k != "deciles"} == {
+        k: v for k, v in whole.items() if k != "deciles"
+    }
 
 
 def test_an_empty_tally_has_no_shares():
@@ -88,6 +95,20 @@ def test_a_contextual_trial_with_a_synthetic_driver_stores_its_recognition(tmp_p
     assert set(rec["per_task"]) <= set(ALL_TASKS)
     assert 0.0 <= rec["loop_task_target_match"] <= rec["loop_task_match"] <= 1.0
     assert set(result.outcome["label_tasks"]) <= set(ALL_TASKS)
+    # the assistance measures of issue 40, scored on every tick of the trial
+    assist = rec["assist"]
+    assert assist["ticks"] == result.outcome["ticks"]
+    assert assist["seconds"] == pytest.approx(result.outcome["duration_s"], abs=1e-6)
+    assert sum(d["labelled_ticks"] for d in rec["deciles"]) == rec["labelled_ticks"]
+    assert rec["assist_coverage"] is not None and 0.0 <= rec["assist_coverage"] <= 1.0
+    if assist["assist_all_ticks"]:
+        assert 0.0 <= rec["assist_precision"] <= 1.0
+    assert 0.0 <= rec["confident_wrong_longest_s"] <= rec["confident_wrong_s"]
+    assert rec["confident_wrong_s_per_min"] >= 0.0
+    # the model named by its file and content, not by the path on this machine
+    model = Path(result.outcome["mode_settings"]["model_path"])
+    digest = hashlib.sha256(model.read_bytes()).hexdigest()
+    assert result.outcome["model"] == {"file": model.name, "sha256": digest}
 
 
 def test_a_manual_trial_scores_no_recognition(tmp_path, rng):
