@@ -139,3 +139,57 @@ def test_the_recognition_bench_pools_its_scenes_and_checks_the_aims():
     assert 0.0 <= figures["loop_task_target_match"] <= figures["loop_task_match"] <= 1.0
     budgets = check_budgets(figures, ["recognition"])
     assert {b["value"] for b in budgets.values()} >= {figures["loop_task_match"]}
+    # issue 40's aims: five budgets, the assistance figures pooled and per decile
+    assert set(budgets) == {
+        "loop_task_match",
+        "loop_task_target_match",
+        "assist_precision",
+        "assist_coverage",
+        "confident_wrong_s_per_min",
+    }
+    assert budgets["confident_wrong_s_per_min"]["op"] == "<="
+    assert 0.0 <= figures["assist_coverage"] <= 1.0
+    assert figures["confident_wrong_s_per_min"] >= 0.0
+    assert len(figures["loop_deciles"]) == 10
+    assert sum(d["labelled_ticks"] for d in figures["loop_deciles"]) == total
+    assert "recognition_compare" not in figures
+
+
+def test_the_recognition_bench_measures_other_settings_beside_the_default():
+    from study.bench.recognition import run
+
+    few = {"candidates": 2}  # a setting every contextual mode has; a recogniser's alike
+    figures = run(quick=True, scenes=["demo_docking"], generated=(), compare={"few": few})
+    both = figures["recognition_compare"]
+    assert set(both) == {"default", "few"}
+    assert both["default"]["loop_task_match"] == figures["loop_task_match"]
+    # the same drivers and scenes: the labelled ticks differ only by how the runs drove
+    assert both["few"]["labelled_ticks"] > 0
+    for run_ in both.values():
+        assert sum(d["labelled_ticks"] for d in run_["deciles"]) == run_["labelled_ticks"]
+    assert figures["recognition_scenes"] == ["demo_docking"]
+
+
+@pytest.mark.parametrize(
+    ("text", "seeds"),
+    [("20-29", tuple(range(20, 30))), ("0,3,5", (0, 3, 5)), ("0-2,7", (0, 1, 2, 7)), ("4", (4,))],
+)
+def test_generated_seeds_are_read_as_ranges_and_lists(text, seeds):
+    from study.bench.recognition import parse_seeds
+
+    assert parse_seeds(text) == seeds
+
+
+@pytest.mark.parametrize("text", ["", "a", "3-1", "-2", "1-", "1,,2"])
+def test_bad_generated_seeds_are_refused(text):
+    from study.bench.recognition import parse_seeds
+
+    with pytest.raises(ValueError, match="generated seeds"):
+        parse_seeds(text)
+
+
+def test_options_for_a_group_that_does_not_run_are_refused():
+    from study.bench import measure
+
+    with pytest.raises(ValueError, match="recognition"):
+        measure(["sim"], options={"recognition": {"generated": (20,)}})

@@ -82,7 +82,7 @@ def test_no_assistance_covers_nothing_and_is_never_wrong(rng):
 
 def test_always_right_assistance_is_precise_and_never_confidently_wrong(rng):
     rows = []
-    for r in _rows(rng, 300):
+    for _ in range(300):
         task = str(rng.choice(["a", "b"]))
         target = str(rng.choice(["x", "y"]))
         rows.append((f"l{task}", target, task, target, float(rng.uniform(CONFIDENT_BETA, 1.0))))
