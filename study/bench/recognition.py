@@ -129,6 +129,7 @@ def run(
         ``confident_wrong_s_per_min`` [s per trial minute], ``confident_wrong_longest_s``
         (:func:`study.engine.recognition.assist_measures`); ``loop_per_task`` the figures
         per true task type; ``loop_deciles`` per decile of the trials' labelled time;
+        ``loop_assist`` the pooled counts and seconds behind the assistance figures;
         ``loop_shipped`` and ``loop_generated`` the pooled figures of each set;
         ``loop_per_scene`` the figures per scene, with ``completed`` (the share of trials
         that completed their task); with ``compare``, ``recognition_compare`` {"default"
@@ -160,6 +161,7 @@ def run(
         **{k: v for k, v in out.items() if k not in ("per_task", "deciles", "assist")},
         "loop_per_task": out["per_task"],
         "loop_deciles": out["deciles"],
+        "loop_assist": out["assist"],
         "loop_shipped": _brief(shipped),
         "loop_generated": _brief(made),
         "loop_per_scene": per_scene,
