@@ -13,6 +13,7 @@ from autonomy.task_types import KIND_TASK, MOTION_TASK, TASK_TYPES, contextual_t
 from study.engine.recognition import RecognitionTally
 from tasks.contextual import TARGET_KIND
 from tasks.contextual import TASK_TYPES as ALL_TASKS
+from tests.cli_helpers import asa
 
 
 def test_every_named_task_targets_the_kind_that_names_it():
@@ -175,21 +176,19 @@ def test_the_recognition_bench_measures_other_settings_beside_the_default():
     [("20-29", tuple(range(20, 30))), ("0,3,5", (0, 3, 5)), ("0-2,7", (0, 1, 2, 7)), ("4", (4,))],
 )
 def test_generated_seeds_are_read_as_ranges_and_lists(text, seeds):
-    from study.bench.recognition import parse_seeds
+    from study.cli.bench import parse_seeds
 
     assert parse_seeds(text) == seeds
 
 
 @pytest.mark.parametrize("text", ["", "a", "3-1", "-2", "1-", "1,,2"])
-def test_bad_generated_seeds_are_refused(text):
-    from study.bench.recognition import parse_seeds
+def test_bad_generated_seeds_are_refused_in_one_line(capsys, text):
+    code, out, err = asa(capsys, "bench", "--only", "recognition", f"--generated-seeds={text}")
+    assert code == 2 and out == ""
+    assert f"--generated-seeds: generated seeds {text!r}" in err
+    assert len(err.strip().splitlines()) == 1
 
-    with pytest.raises(ValueError, match="generated seeds"):
-        parse_seeds(text)
 
-
-def test_options_for_a_group_that_does_not_run_are_refused():
-    from study.bench import measure
-
-    with pytest.raises(ValueError, match="recognition"):
-        measure(["sim"], options={"recognition": {"generated": (20,)}})
+def test_recognition_options_without_the_recognition_group_are_refused(capsys):
+    code, _, err = asa(capsys, "bench", "--only", "sim", "--generated-seeds", "20-29")
+    assert code == 2 and "apply to group recognition" in err

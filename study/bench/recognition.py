@@ -195,27 +195,3 @@ def _drive(
         per_scene[load_scenario(scene).name] = s
         (shipped if k < n_shipped else made).merge(tally)
     return shipped, made, per_scene
-
-
-def parse_seeds(text: str) -> tuple[int, ...]:
-    """Seeds written ``"20-29"`` (inclusive), ``"0,3,5"`` or a mix (``"0-2,7"``).
-
-    Raises
-    ------
-    ValueError
-        For anything else, naming the text and the allowed forms.
-    """
-    seeds: list[int] = []
-    try:
-        for part in text.split(","):
-            lo, dash, hi = part.strip().partition("-")
-            first, last = int(lo), int(hi) if dash else int(lo)
-            if first < 0 or last < first:
-                raise ValueError
-            seeds += range(first, last + 1)
-    except ValueError:
-        raise ValueError(
-            f"generated seeds {text!r}: expected a range like 20-29, a list like 0,3,5 or "
-            "a mix (non-negative integers, ranges low-high)"
-        ) from None
-    return tuple(seeds)

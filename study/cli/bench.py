@@ -95,12 +95,34 @@ def bench(
 _STAGES_PREFIX = "trial_stages_"
 
 
+def parse_seeds(text: str) -> tuple[int, ...]:
+    """Seeds written ``"20-29"`` (inclusive), ``"0,3,5"`` or a mix (``"0-2,7"``).
+
+    Raises
+    ------
+    ValueError
+        For anything else, naming the text and the allowed forms.
+    """
+    seeds: list[int] = []
+    try:
+        for part in text.split(","):
+            lo, dash, hi = part.strip().partition("-")
+            first, last = int(lo), int(hi) if dash else int(lo)
+            if first < 0 or last < first:
+                raise ValueError
+            seeds += range(first, last + 1)
+    except ValueError:
+        raise ValueError(
+            f"generated seeds {text!r}: expected a range like 20-29, a list like 0,3,5 or "
+            "a mix (non-negative integers, ranges low-high)"
+        ) from None
+    return tuple(seeds)
+
+
 def _recognition_options(
     generated_seeds: str | None, generated_only: bool, compare: tuple[str, ...]
 ) -> dict[str, Any]:
     """The recognition group's keyword options from the command line's."""
-    from study.bench.recognition import parse_seeds  # the group's imports, when asked
-
     options: dict[str, Any] = {}
     if generated_seeds is not None:
         try:
