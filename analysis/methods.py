@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import tomllib
 from dataclasses import dataclass
+from pathlib import PurePath
 from typing import Any
 
 import pandas as pd
@@ -266,26 +267,55 @@ def _procedure(protocol: dict[str, Any]) -> str:
     return f"Each session consisted of {'; '.join(steps)}.{tail}"
 
 
-def _stored_settings(data: StudyData, mode: str) -> dict[str, Any] | None:
+def _stored_outcome(data: StudyData, mode: str) -> dict[str, Any] | None:
+    """The outcome of the first trial of ``mode`` that stored its mode settings."""
     trials = data.tables.get("trial", pd.DataFrame())
     if trials.empty or "outcome" not in trials:
         return None
     for mode_, outcome in zip(trials["mode"], trials["outcome"], strict=True):
         if mode_ == mode and isinstance(outcome, dict) and "mode_settings" in outcome:
-            return dict(outcome["mode_settings"])
+            return outcome
     return None
 
 
+THESIS_RECOGNISER = "thesis (Ch. 6)"  # what a study stored before the setting existed ran
+
+
+def _model_text(settings: dict[str, Any], outcome: dict[str, Any] | None) -> str:
+    """The model a mode read, by file name and SHA-256 (issue 40), and the recogniser the
+    mode ran; "" for a mode without a model. The absolute path is the machine's, not the
+    study's, and is never printed."""
+    path = settings.get("model_path")
+    if not isinstance(path, str):
+        return ""
+    if not path:
+        return "no model (manual behaviour)"
+    stored = (outcome or {}).get("model")
+    if isinstance(stored, dict) and stored.get("sha256"):
+        name = f"model {stored.get('file', '?')} (SHA-256 {stored['sha256']})"
+    else:
+        name = f"model {PurePath(path).name} (SHA-256 not stored with this study's trials)"
+    recogniser = settings.get("recogniser")
+    which = THESIS_RECOGNISER if recogniser is None else str(recogniser)
+    return f"{name}, recogniser {which}"
+
+
 def _mode_text(mode: str, data: StudyData, protocol: dict[str, Any]) -> str:
-    stored = _stored_settings(data, mode)
+    outcome = _stored_outcome(data, mode)
+    stored = dict(outcome["mode_settings"]) if outcome is not None else None
     given = ((protocol.get("modes") or {}).get("settings") or {}).get(mode) or {}
     settings = stored if stored is not None else given
-    shown = {k: v for k, v in sorted(settings.items()) if not isinstance(v, dict | list)}
-    if not shown:
+    model = _model_text(settings, outcome)
+    shown = {
+        k: v
+        for k, v in sorted(settings.items())
+        if not isinstance(v, dict | list) and k not in ("model_path", "recogniser")
+    }
+    if not shown and not model:
         where = "the platform's defaults (not stored with trials of this version)"
         return f"{mode}: {where}" if stored is None else f"{mode}: no settings"
     source = "as stored with its trials" if stored is not None else "as the protocol sets them"
-    values = ", ".join(f"{k} = {v}" for k, v in shown.items())
+    values = ", ".join([model] * bool(model) + [f"{k} = {v}" for k, v in shown.items()])
     return f"{mode} ({source}): {values}"
 
 
