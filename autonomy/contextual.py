@@ -24,6 +24,8 @@ from scipy.special import ndtr
 from autonomy import _kernels, _tick_kernels
 from autonomy.arbitration import blend
 from autonomy.dwa import DWASettings, dwa
+from autonomy.intent_prior import IntentPrior
+from autonomy.kind_time import KindTimeRecogniser, KindTimeSettings
 from autonomy.local_gmr import EM_MAX_ITER, EM_TOL, LocalGMR
 from autonomy.model import DEFAULT_MODEL, ContextualModel, load_model
 from autonomy.modes import register, settings_from
@@ -32,6 +34,8 @@ from autonomy.sogp_classifier import argmax_finite
 from autonomy.task_types import TASK_TYPES, contextual_task, primitive_motions
 from autonomy.tracking import TrackingSettings, track
 from autonomy.types import EMPTY_PATH, Assist, RobotModel, as_candidates
+
+RECOGNISERS = ("kind_time", "thesis", "oracle", "none")
 
 
 @dataclass(frozen=True, slots=True)
@@ -61,8 +65,19 @@ class ContextualSettings:
     # Eq. 3.8) if that gets further; False: always the user's command, scaled
     yield_planner: bool = True
     planner: DWASettings = field(default_factory=DWASettings)
+    # which recogniser drives the assistance: "kind_time" (issue 40: the component's kind
+    # and time, autonomy.kind_time), "thesis" (Ch. 6: Eq. 5.8 per tick, beta of Eq. 5.10),
+    # "oracle" (the synthetic participant's true task and target, blend weight 1: an
+    # ablation), "none" (recognition shown, never assisting: the safety layer alone)
+    recogniser: str = "kind_time"
+    kind_time: KindTimeSettings = field(default_factory=KindTimeSettings)
 
     def __post_init__(self) -> None:
+        if self.recogniser not in RECOGNISERS:
+            raise ValueError(
+                f"contextual_task setting recogniser: must be one of "
+                f"{', '.join(RECOGNISERS)}, got {self.recogniser!r}"
+            )
         if not isinstance(self.yield_planner, bool):
             raise ValueError(
                 "contextual_task setting yield_planner: must be true or false, got "
@@ -424,15 +439,31 @@ class ContextualTaskMode:
             if self.runtime_ is not None
             else {}
         )
+        self.intent_ = None
+        self.intention_ = ("", "")  # the oracle's: the participant's true (task, target)
+        if self.runtime_ is not None and self.settings.recogniser == "kind_time":
+            prior = IntentPrior.from_metadata(
+                self.runtime_.model.metadata, self.runtime_.recogniser.classes_
+            )
+            self.intent_ = KindTimeRecogniser(prior, self.settings.kind_time)
 
     def reset(self, robot: RobotModel) -> None:
         self.robot_ = robot
+        if self.intent_ is not None:
+            self.intent_.reset()
         # (3,) the limits that normalise a command (max speed twice, max yaw rate)
         self.limit_ = np.array([robot.max_speed, robot.max_speed, robot.max_yaw_rate])
 
     def settings_dict(self) -> dict[str, Any]:
         """The effective :class:`ContextualSettings`, tracking's nested."""
         return dataclasses.asdict(self.settings)
+
+    def needs_intention(self) -> bool:
+        """The oracle (``recogniser = "oracle"``) is driven by the true intention."""
+        return self.settings.recogniser == "oracle"
+
+    def observe_intention(self, task: str, target: str) -> None:
+        self.intention_ = (str(task), str(target))
 
     def label_tasks(self) -> dict[str, str]:
         """The mode's labels are contextual task types (:mod:`autonomy.task_types`): each
@@ -509,6 +540,8 @@ class ContextualTaskMode:
         u_norm = u / self.limit_
         nx, ny, _ = u_norm.tolist()
         if rt is None or not len(components) or math.hypot(nx, ny) < s.min_input:
+            if self.intent_ is not None:
+                self.intent_.idle()
             return self._manual(u, points, start, time.perf_counter())
 
         # 1. candidates: the nearest components by target point
@@ -519,14 +552,24 @@ class ContextualTaskMode:
         chosen, Z = np.empty(n, dtype=np.int64), np.empty((n, 7))
         scaler = rt.model.scaler
         _tick_kernels.candidate_features(targets, n, u_norm, scaler.mean_, scaler.scale_, Z, chosen)
-        # 3. recognition, Eqs. (5.6), (5.8), (5.10)
+        # 3. recognition, Eqs. (5.6), (5.8), (5.10); with kind and time (autonomy.kind_time)
         i, cluster, beta, mean = rt.recogniser(Z)
+        ids = _ids(components, chosen)
+        if self.intent_ is not None and i >= 0:
+            i, cluster, beta = self._kind_time(components, chosen, ids, targets, mean, u_norm)
+        elif s.recogniser == "oracle":
+            i, cluster, beta = self._oracle(components, chosen, ids, mean)
+        elif s.recogniser == "none":
+            beta = 0.0
         t_rec = time.perf_counter()
         if i < 0:  # no finite score: nothing recognised
             return self._manual(u, points, start, t_rec)
         component = components[int(chosen[i])]
-        # 4. rollout, Alg. 3
-        path, _ = rollout(rt, cluster, component, robot, s)
+        # 4. rollout, Alg. 3 (not while the kind-and-time recogniser withholds assistance)
+        if beta > 0.0 or s.recogniser in ("thesis", "none"):
+            path, _ = rollout(rt, cluster, component, robot, s)
+        else:
+            path = EMPTY_PATH
         t_roll = time.perf_counter()
         # 5. tracking controller -> g
         if len(path):
@@ -539,13 +582,18 @@ class ContextualTaskMode:
             )
         else:
             g = u.copy()
+        if s.recogniser in ("kind_time", "oracle") and beta > 0.0 and g[0] * u[0] + g[1] * u[1] < 0:
+            # the driver pushes against the assistance: it gives way (and believes less)
+            if self.intent_ is not None:
+                self.intent_.contradict(ids[i])
+            beta = 0.0
         # 6. blend (3.2) and the safety layer
         v = blend(u, g, beta)  # Eq. (3.2)
         t_track = time.perf_counter()
         v, beta = self._safe(v, u, beta, points, obs.velocity)
         end = time.perf_counter()
         best = mean.max(axis=1)
-        scores = dict(zip(_ids(components, chosen), best.tolist(), strict=True))
+        scores = dict(zip(ids, best.tolist(), strict=True))
         return Assist(
             v=v,
             g=g,
@@ -562,6 +610,41 @@ class ContextualTaskMode:
                 "total": (end - start) * 1e3,
             },
         )
+
+    def _kind_time(
+        self,
+        components: Any,
+        chosen: np.ndarray,
+        ids: list[str],
+        targets: np.ndarray,
+        mean: np.ndarray,
+        u_norm: np.ndarray,
+    ) -> tuple[int, int, float]:
+        """The kind-and-time recogniser's candidate (row of ``chosen``), cluster id and
+        blend weight; ``mean`` (n, c) the SOGP means of the ``chosen`` candidates."""
+        picked = [components[int(k)] for k in chosen.tolist()]
+        kinds = [str(c.kind) for c in picked]
+        normals = np.array([np.asarray(c.normal, dtype=float).reshape(2) for c in picked])
+        near = targets[chosen]
+        found = self.intent_(mean, ids, kinds, near, normals, u_norm)
+        classes = self.runtime_.recogniser.classes_
+        return found.candidate, int(classes[found.primitive]), found.beta
+
+    def _oracle(
+        self, components: Any, chosen: np.ndarray, ids: list[str], mean: np.ndarray
+    ) -> tuple[int, int, float]:
+        """The true target among the candidates (row of ``chosen``; -1 when the driver
+        does no task or the target is not among them), the best-scoring primitive whose
+        motion makes the true task on it (any primitive if none does), blend weight 1."""
+        task, target = self.intention_
+        if not task or target not in ids:
+            return -1, -1, 0.0
+        i = ids.index(target)
+        kind = str(components[int(chosen[i])].kind)
+        classes = self.runtime_.recogniser.classes_
+        fits = [contextual_task(kind, self.motions_.get(int(c), "")) == task for c in classes]
+        scores = np.where(fits, mean[i], -np.inf) if any(fits) else mean[i]
+        return i, int(classes[int(np.argmax(scores))]), 1.0
 
 
 @register("contextual_task")

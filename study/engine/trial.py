@@ -142,6 +142,14 @@ class TrialLoop:
         # the mode's effective settings, stored with the outcome (e.g. reactive arbitration)
         self.mode_settings = jsonable(mode.settings_dict()) if mode is not None else None
         self.model = model_identity(self.mode_settings)  # the model file's name and SHA-256
+        # an oracle mode (an ablation) is told the synthetic participant's true intention
+        self.oracle = mode is not None and mode.needs_intention()
+        if self.oracle and participant.kind != "synthetic":
+            raise ValueError(
+                f"mode {mode.name!r}: its settings drive it by the participant's true "
+                f"intention, which only synthetic participants have (this participant is "
+                f"{participant.kind!r}); use another recogniser for people"
+            )
         self._components_read = False  # the mode reads the components (stage clock only)
 
     # -------------------------------------------------------------- run
@@ -282,6 +290,8 @@ class TrialLoop:
             out = None
             v = _ZERO3
         else:
+            if self.oracle:
+                mode.observe_intention(*self.participant.intention())
             out = mode.step(self.obs, u)
             v = out.v
         if stages is not None:

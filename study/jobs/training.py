@@ -55,7 +55,9 @@ def train_model(
             offsets=demos.cand_offsets,
             ids=demos.cand_ids,
             target=demos.target,
+            kinds=demos.cand_kinds,
         ),
+        executing=demos.phase != "approach",
     )
     recipe = recording_recipe(demonstrations)
     if recipe is not None:
