@@ -1,7 +1,7 @@
 """The contextual mode's step as it was before its kernels (issue 25), kept verbatim as
 the oracle of tests/test_contextual_kernels.py: the fast online GMR with its pooled kNN and
 fit cache (autonomy.local_gmr.LocalGMR), the rollout (Alg. 3), the recogniser's call
-(a function of an autonomy.contextual.Recogniser) and the tracking controller."""
+(a function of an autonomy.sogp_recogniser.Recogniser) and the tracking controller."""
 
 from __future__ import annotations
 
