@@ -157,6 +157,24 @@ DEVIATIONS: tuple[Deviation, ...] = (
         "components and clusters under 4 % of the points are merged into their nearest.",
     ),
     Deviation(
+        "Contextual mode: the component's kind and time",
+        ("contextual_task",),
+        'By default (recogniser = "kind_time") the contextual mode recognises the driver\'s '
+        "task from the semantic component's kind and over time, not per tick from the task "
+        "feature alone (Ch. 6): each candidate's SOGP scores (Eq. 5.6) are combined with the "
+        "share of each motion primitive's demonstrations performed on that kind of component, "
+        "the distances at which the primitive was executed rather than approached, and the "
+        "target's rank among the nearest components, all learnt from the unlabelled "
+        "demonstrations (the target component, and so its kind, is known without a task "
+        "label, Sec. 6.2.1; gaps and docks reach the primitives as doorway-like point "
+        "targets, Sec. 4.2.4), plus the progress along a passage's axis; the belief is "
+        "filtered with the Ch. 4 recogniser's sticky transition and Bayes update (Eq. 4.4, "
+        "4.14) with a no-task hypothesis, and the blend weight is the winner's posterior only "
+        "when it is decisive (else 0), withdrawn when the driver pushes against the "
+        "assistance. The thesis's recogniser (Eq. 5.8 per tick, beta of Eq. 5.10) is the "
+        'setting recogniser = "thesis"; the Methods name the one a study ran.',
+    ),
+    Deviation(
         "Contextual mode: task labels",
         ("contextual_task",),
         "A recognised primitive is reported as the contextual task it performs on the "
