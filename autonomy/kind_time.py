@@ -40,9 +40,11 @@ class KindTimeSettings:
     distance_weight: float = 0.5  # w_d: execution against approach distance model
     rank_weight: float = 1.0  # w_r: the target's rank among the nearest
     axis_weight: float = 2.0  # passages: |cos(u, passage normal)|
-    toward_weight: float = 1.0  # passages: cos(u, direction to the passage centre)
+    toward_weight: float = 2.0  # passages: cos(u, direction to the passage centre)
+    # a dock is a goal, approached and never crossed (Sec. 4.2.4): log L of moving away
+    dock_departure: float = 5.0
     stay: float = 0.95  # Eq. (4.14): probability of keeping the hypothesis per tick
-    null_log_likelihood: float = 3.0  # log L of the no-task hypothesis
+    null_log_likelihood: float = 2.5  # log L of the no-task hypothesis
     engage: float = 0.8  # least winner posterior with a non-zero blend weight
     margin: float = 0.5  # least lead over the runner-up and the null
     contradicted: float = 0.5  # belief factor of a hypothesis the driver pushes against
@@ -51,6 +53,7 @@ class KindTimeSettings:
         for name in ("evidence_scale", "distance_weight", "rank_weight", "axis_weight"):
             _check(name, getattr(self, name), 0.0, 100.0)
         _check("toward_weight", self.toward_weight, 0.0, 100.0)
+        _check("dock_departure", self.dock_departure, 0.0, 100.0)
         _check("null_log_likelihood", self.null_log_likelihood, -100.0, 100.0)
         for name in ("stay", "engage", "margin", "contradicted"):
             _check(name, getattr(self, name), 0.0, 1.0)
@@ -186,13 +189,20 @@ class KindTimeRecogniser:
         top = lj.max(axis=1)
         log_l = top + np.log(np.exp(lj - top[:, None]).sum(axis=1))
         log_l += s.rank_weight * p.log_rank[np.minimum(np.arange(n), RANKS - 1)]
-        log_l += self._passage_cues(k, d, targets, normals, u_norm)
+        log_l += self._passage_cues(k, d, targets, normals, u_norm, kinds)
         return log_l, best_j
 
     def _passage_cues(
-        self, k: np.ndarray, d: np.ndarray, targets: np.ndarray, normals: np.ndarray, u: np.ndarray
+        self,
+        k: np.ndarray,
+        d: np.ndarray,
+        targets: np.ndarray,
+        normals: np.ndarray,
+        u: np.ndarray,
+        kinds: list[str],
     ) -> np.ndarray:
-        """(n,) the passages' cues: progress along the axis and approach."""
+        """(n,) the passages' cues: progress along the axis and approach; a dock moved away
+        from is no docking."""
         s = self.settings
         speed = math.hypot(float(u[0]), float(u[1]))
         out = np.zeros(len(k))
@@ -204,4 +214,6 @@ class KindTimeRecogniser:
         toward = (targets[:, 0] * ux + targets[:, 1] * uy) / np.where(d > 1e-9, d, 1.0)
         passage = k == 0
         out[passage] = s.axis_weight * axis[passage] + s.toward_weight * toward[passage]
+        leaving = np.array([kind == "dock" for kind in kinds]) & (toward < 0.0)
+        out[leaving] -= s.dock_departure
         return out

@@ -116,7 +116,9 @@ def test_nothing_near_means_no_assistance(rng):
 
 
 def test_the_recogniser_setting(tmp_path):
-    with pytest.raises(ValueError, match="recogniser: must be one of kind_time, thesis, oracle, none"):
+    with pytest.raises(
+        ValueError, match="recogniser: must be one of kind_time, thesis, oracle, none"
+    ):
         ContextualSettings(recogniser="oracle-ish")
     with pytest.raises(ValueError, match=r"kind_time\.stay: must be a number in \[0, 1\]"):
         KindTimeSettings(stay=1.5)
@@ -163,3 +165,23 @@ def test_the_oracle_is_refused_for_other_participants(tmp_path, rng):
             mode_settings={"recogniser": "oracle"},
             timeout_s=2.0,
         )
+
+
+def test_a_dock_is_approached_never_departed(rng):
+    """Docking is doorway-like motion at a dock (Sec. 4.2.4), but a dock is a goal: moving
+    away from it is no docking."""
+    found = {}
+    for direction in (1.0, -1.0):
+        rec = _recogniser(rng)
+        for _ in range(30):
+            f = rec(
+                np.array([[1.0, -1.0]]),
+                ["dock"],
+                ["dock"],
+                np.array([[0.4, 0.0]]),
+                np.array([[1.0, 0.0]]),
+                np.array([0.5 * direction, 0.0, 0.0]),
+            )
+        found[direction] = f
+    assert found[1.0].beta >= 0.8 and found[1.0].posterior > found[-1.0].posterior
+    assert found[-1.0].beta == 0.0
