@@ -54,14 +54,15 @@ def _recogniser(rng, **settings):
 
 
 def _tick(rec, favour, u=(0.6, 0.0, 0.0)):
-    """A doorway 'd' ahead and a wall 'w' beside, 0.4 m each; the SOGP favours ``favour``
-    (its passage primitive for 'd', its wall primitive for 'w')."""
+    """A doorway 'd' 0.4 m ahead and a wall 'w' 0.6 m beside (where each task is executed
+    in the prior); the SOGP favours ``favour`` (its passage primitive for 'd', its wall
+    primitive for 'w')."""
     mean = (
         np.array([[1.0, -1.0], [-1.0, -1.0]])
         if favour == "d"
         else np.array([[-1.0, -1.0], [-1.0, 1.0]])
     )
-    targets = np.array([[0.4, 0.0], [0.0, 0.4]])
+    targets = np.array([[0.4, 0.0], [0.0, 0.6]])
     normals = np.array([[1.0, 0.0], [0.0, 0.0]])
     return rec(mean, ["d", "w"], ["doorway", "wall"], targets, normals, np.array(u))
 
