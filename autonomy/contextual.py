@@ -438,14 +438,8 @@ class ContextualTaskMode:
         scaler = rt.model.scaler
         _tick_kernels.candidate_features(targets, n, u_norm, scaler.mean_, scaler.scale_, Z, chosen)
         # 3. recognition, Eqs. (5.6), (5.8), (5.10); with kind and time (autonomy.kind_time)
-        i, cluster, beta, mean = rt.recogniser(Z)
         ids = _ids(components, chosen)
-        if self.intent_ is not None and i >= 0:
-            i, cluster, beta = self._kind_time(components, chosen, ids, targets, mean, u_norm)
-        elif s.recogniser == "oracle":
-            i, cluster, beta = self._oracle(components, chosen, ids, mean)
-        elif s.recogniser == "none":
-            beta = 0.0
+        i, cluster, beta, mean = self._recognise(components, chosen, ids, targets, Z, u_norm)
         t_rec = time.perf_counter()
         if i < 0:  # no finite score: nothing recognised
             return self._manual(u, points, start, t_rec)
@@ -457,21 +451,7 @@ class ContextualTaskMode:
             path = EMPTY_PATH
         t_roll = time.perf_counter()
         # 5. tracking controller -> g
-        if len(path):
-            g = track(
-                path,
-                s.dt,
-                max_speed=robot.max_speed,
-                max_yaw_rate=robot.max_yaw_rate,
-                settings=s.tracking,
-            )
-        else:
-            g = u.copy()
-        if s.recogniser in ("kind_time", "oracle") and beta > 0.0 and g[0] * u[0] + g[1] * u[1] < 0:
-            # the driver pushes against the assistance: it gives way (and believes less)
-            if self.intent_ is not None:
-                self.intent_.contradict(ids[i])
-            beta = 0.0
+        g, beta = self._guide(path, u, beta, ids[i])
         # 6. blend (3.2) and the safety layer
         v = blend(u, g, beta)  # Eq. (3.2)
         t_track = time.perf_counter()
@@ -495,6 +475,51 @@ class ContextualTaskMode:
                 "total": (end - start) * 1e3,
             },
         )
+
+    def _recognise(
+        self,
+        components: Any,
+        chosen: np.ndarray,
+        ids: list[str],
+        targets: np.ndarray,
+        Z: np.ndarray,
+        u_norm: np.ndarray,
+    ) -> tuple[int, int, float, np.ndarray]:
+        """The settings' recogniser on the ``chosen`` candidates' features ``Z`` (n, 7):
+        (candidate row, cluster id, blend weight, the SOGP means (n, c))."""
+        i, cluster, beta, mean = self.runtime_.recogniser(Z)  # Eqs. (5.6), (5.8), (5.10)
+        recogniser = self.settings.recogniser
+        if self.intent_ is not None and i >= 0:
+            i, cluster, beta = self._kind_time(components, chosen, ids, targets, mean, u_norm)
+        elif recogniser == "oracle":
+            i, cluster, beta = self._oracle(components, chosen, ids, mean)
+        elif recogniser == "none":
+            beta = 0.0
+        return i, cluster, beta, mean
+
+    def _guide(
+        self, path: np.ndarray, u: np.ndarray, beta: float, target: str
+    ) -> tuple[np.ndarray, float]:
+        """The tracking controller's command ``g`` (3,) along ``path`` (``u`` without one)
+        and the blend weight: 0 when the driver's command ``u`` points against ``g`` with
+        the kind-and-time or oracle recogniser (which then believes less in ``target``)."""
+        s, robot = self.settings, self.robot_
+        if len(path):
+            g = track(
+                path,
+                s.dt,
+                max_speed=robot.max_speed,
+                max_yaw_rate=robot.max_yaw_rate,
+                settings=s.tracking,
+            )
+        else:
+            g = u.copy()
+        pushing = g[0] * u[0] + g[1] * u[1] < 0.0
+        if s.recogniser in ("kind_time", "oracle") and beta > 0.0 and pushing:
+            if self.intent_ is not None:
+                self.intent_.contradict(target)
+            beta = 0.0
+        return g, beta
 
     def _kind_time(
         self,

@@ -15,6 +15,7 @@ import numpy as np
 from sklearn.mixture import BayesianGaussianMixture
 
 from autonomy.features import ENCODED_NAMES, FeatureScaler, encode, task_features
+from autonomy.intent_prior import demonstrated_prior
 from autonomy.model import FORMAT_VERSION, ContextualModel, platform_version
 from autonomy.sogp import MAX_LENGTH_SCALE
 from autonomy.sogp_classifier import SOGPClassifier
@@ -340,7 +341,16 @@ def train(
     info["way_points"] = int(len(wp))
     metadata = _metadata(q, labels, task, classifier, info, settings, seed=seed, source=source)
     if candidates is not None and candidates.kinds is not None and executing is not None:
-        metadata["intent_prior"] = _intent_prior(q, labels, candidates, executing)
+        metadata["intent_prior"] = demonstrated_prior(
+            q,
+            labels,
+            candidates.points,
+            candidates.offsets,
+            candidates.ids,
+            candidates.target,
+            candidates.kinds,
+            executing,
+        )
     return ContextualModel.with_classifier(
         classifier,
         scaler=scaler,
@@ -351,28 +361,6 @@ def train(
         gmr_offsets=offsets,
         metadata=metadata,
     )
-
-
-def _intent_prior(
-    q: np.ndarray, labels: np.ndarray, candidates: DemoCandidates, executing: np.ndarray
-) -> dict[str, Any]:
-    """:func:`autonomy.intent_prior.fit_intent_prior` of the demonstrated ticks: each
-    target's distance (``q[:, :2]``), kind and rank among the tick's components."""
-    from autonomy.intent_prior import fit_intent_prior
-
-    n = len(q)
-    kind, rank = np.full(n, "", dtype=object), np.full(n, -1, dtype=np.int64)
-    off = candidates.offsets
-    for i in range(n):
-        a, b = int(off[i]), int(off[i + 1])
-        hit = np.flatnonzero(candidates.ids[a:b] == candidates.target[i])
-        if len(hit):
-            d2 = np.einsum("ij,ij->i", candidates.points[a:b], candidates.points[a:b])
-            order = np.argsort(d2, kind="stable")
-            kind[i] = str(candidates.kinds[a + hit[0]])
-            rank[i] = int(np.flatnonzero(order == hit[0])[0])
-    distance = np.hypot(q[:, 0], q[:, 1])
-    return fit_intent_prior(labels, distance, np.asarray(executing, dtype=bool), kind, rank)
 
 
 def _metadata(

@@ -171,20 +171,10 @@ def run_evaluation(
     model_path = Path(DEFAULT_MODEL if model is None else model)
     metadata = load_model(model_path).metadata
     settings = _with_model_recipe(settings, metadata, model_path)
-    provenance: dict[str, Any] = {"folder": None if demonstrations is None else str(demonstrations)}
     if demonstrations is None:
-        demonstrations, _, mismatch = cached_demonstrations(
-            metadata.get("data_sha256"), where=str(model_path), **model_recipe(metadata)
-        )
-        provenance = {
-            "folder": str(demonstrations),
-            "recipe": model_recipe(metadata),
-            "model_data_sha256": metadata.get("data_sha256"),
-            "data_sha256": metadata.get("data_sha256") if mismatch is None else mismatch.got,
-            "same_as_model": mismatch is None,
-        }
-        if mismatch is not None and warn is not None:
-            warn(mismatch.text(flags=True))
+        demonstrations, provenance = _model_demonstrations(metadata, model_path, warn)
+    else:
+        provenance = {"folder": str(demonstrations)}
     demos = load_demonstrations(demonstrations)
     with contextlib.ExitStack() as stack:
         map_fn: Any = map
@@ -211,6 +201,26 @@ def run_evaluation(
     if repeats > 1:
         result["repeats"] = summarise_repeats(results)
     return result
+
+
+def _model_demonstrations(
+    metadata: dict[str, Any], model_path: Path, warn: Callable[[str], None] | None
+) -> tuple[Path, dict[str, Any]]:
+    """The model's own demonstrations (:func:`cached_demonstrations` with its recipe) and
+    where they came from, for the result's ``"demonstrations"``; ``warn`` is told when they
+    hash otherwise than the model's data."""
+    recipe = model_recipe(metadata)
+    expected = metadata.get("data_sha256")
+    folder, _, mismatch = cached_demonstrations(expected, where=str(model_path), **recipe)
+    if mismatch is not None and warn is not None:
+        warn(mismatch.text(flags=True))
+    return folder, {
+        "folder": str(folder),
+        "recipe": recipe,
+        "model_data_sha256": expected,
+        "data_sha256": expected if mismatch is None else mismatch.got,
+        "same_as_model": mismatch is None,
+    }
 
 
 def _as_completed_map(
