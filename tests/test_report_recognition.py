@@ -281,6 +281,7 @@ def test_the_sanity_summary_pools_the_stored_counts(real_db):
     assert "labelled_ticks" not in summary["manual"]
     line = next(x for x in format_summary(summary) if "contextual_task" in x)
     assert f"nothing recognised {e['null_rate']:.1%}" in line and f"of {n} labelled" in line
+    assert f"assistance right {e['assist_precision']:.0%} of the time it engaged" in line
 
 
 def test_an_older_database_is_scored_from_its_samples_and_label_tasks(tmp_path, seed):

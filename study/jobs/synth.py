@@ -486,6 +486,9 @@ def sanity_summary(db: str | Path, *, phase: str = "main") -> dict[str, dict[str
                     entry["task_match"] = rec["task_matches"] / rec["labelled_ticks"]
                     entry["recognition_match"] = rec["task_target_matches"] / rec["labelled_ticks"]
                     entry["null_rate"] = rec["null_ticks"] / rec["labelled_ticks"]
+                    for key in ("assist_precision", "assist_coverage", "confident_wrong_s_per_min"):
+                        if rec.get(key) is not None:
+                            entry[key] = rec[key]
                 out[mode] = entry
     finally:
         engine.dispose()
@@ -503,11 +506,16 @@ def _recognition(conn: Connection, rows: list[dict[str, Any]]) -> RecognitionTal
         if isinstance(outcome.get("recognition"), dict):
             pooled.merge(RecognitionTally.from_summary(outcome["recognition"]))
         elif isinstance(outcome.get("label_tasks"), dict):
-            q = select(st.c.label, st.c.target, st.c.true_task, st.c.true_target).where(
-                st.c.trial_id == r["id"], st.c.true_task != ""
+            q = (
+                select(st.c.label, st.c.target, st.c.true_task, st.c.true_target, st.c.beta, st.c.t)
+                .where(st.c.trial_id == r["id"])
+                .order_by(st.c.tick)
             )
-            tally = RecognitionTally(outcome["label_tasks"])
-            pooled.merge(tally.add_rows(conn.execute(q)))
+            ticks = conn.execute(q).all()
+            # the tick's duration from the stored simulated times (the first ends at t = dt)
+            dt = float(ticks[0][5]) if ticks else 0.0
+            tally = RecognitionTally(outcome["label_tasks"], dt_s=dt)
+            pooled.merge(tally.add_rows(row[:5] for row in ticks))
     return pooled if sum(c[0] for c in pooled.counts.values()) else None
 
 
@@ -524,6 +532,12 @@ def format_summary(summary: dict[str, dict[str, Any]]) -> list[str]:
                 f", recognition: task and target match {e['recognition_match']:.0%}, "
                 f"task matches {e['task_match']:.0%}, nothing recognised "
                 f"{e['null_rate']:.1%} of {e['labelled_ticks']} labelled ticks"
+            )
+        if "assist_precision" in e:
+            line += (
+                f"; assistance right {e['assist_precision']:.0%} of the time it engaged, on "
+                f"{e.get('assist_coverage', 0.0):.0%} of labelled ticks, confidently wrong "
+                f"{e.get('confident_wrong_s_per_min', 0.0):.1f} s/min"
             )
         lines.append(line)
     return lines
