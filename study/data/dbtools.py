@@ -18,6 +18,7 @@ columns in the table's order, JSON columns as JSON text, times in ISO 8601, NULL
 
 from __future__ import annotations
 
+import base64
 import contextlib
 import csv
 import datetime as dt
@@ -415,6 +416,8 @@ def _cell(value: Any, is_json: bool) -> str:
         return "true" if value else "false"
     if isinstance(value, float):
         return repr(value) if math.isfinite(value) else ""
+    if isinstance(value, bytes):  # the lab's samples (lsl_chunk): base64 text
+        return base64.b64encode(value).decode("ascii")
     return str(value)
 
 

@@ -2,7 +2,9 @@
 which of the lab's streams it records (DESIGN.md, "The lab's clock"). Plain data, read
 without pylsl.
 
-``[lsl]`` outlets (true), mode_names (false), resolve_timeout_s (2.0), and
+``[lsl]`` outlets (true), mode_names (false), resolve_timeout_s (2.0),
+wait_for_consumers_s (0: how long the session waits, before its first event, for a
+consumer of its event stream such as LabRecorder), and
 ``[[lsl.record]]`` tables with type, name and/or source_id (at least one) and required
 (true): every stream that matches all the given properties is recorded.
 """
@@ -16,6 +18,7 @@ from study.engine.protocol.readers import boolean
 
 MAX_RECORD = 32  # [[lsl.record]] tables
 MAX_RESOLVE_S = 60.0  # [s] the longest wait for a required stream
+MAX_WAIT_S = 600.0  # [s] the longest wait for a consumer of the event stream
 OFFSET_EVERY_S = 5.0  # [s] between two clock offsets of a recorded stream (LabRecorder's)
 _PROPERTIES = ("type", "name", "source_id")
 
@@ -53,6 +56,7 @@ class LslSettings:
     outlets: bool = True  # the event (markers) and state streams
     mode_names: bool = False  # the active mode's name in trial_started markers
     resolve_timeout_s: float = 2.0  # [s] wait for each required stream before refusing
+    wait_for_consumers_s: float = 0.0  # [s] wait for a recorder of the events before starting
     record: tuple[RecordSpec, ...] = ()
 
     @property
@@ -88,6 +92,9 @@ def lsl_settings(r: FieldReader, present: bool) -> LslSettings:
         outlets=boolean(r, "outlets", True),
         mode_names=boolean(r, "mode_names", False),
         resolve_timeout_s=r.number("resolve_timeout_s", 2.0, positive=True, maximum=MAX_RESOLVE_S),
+        wait_for_consumers_s=r.number(
+            "wait_for_consumers_s", 0.0, non_negative=True, maximum=MAX_WAIT_S
+        ),
         record=records,
     )
     r.finish()
