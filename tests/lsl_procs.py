@@ -105,7 +105,8 @@ def _reader(a: argparse.Namespace) -> None:
         i.open_stream(timeout=10.0)
         return i
 
-    events, state = inlet("Markers"), inlet("RobotState")
+    state, events = inlet("RobotState"), inlet("Markers")  # state first: the session
+    # waits for a consumer of its events, then ticks at once
     Path(a.ready).write_text("ready", encoding="utf-8")
     markers: list[list] = []
     states: list[list] = []
