@@ -11,12 +11,14 @@ from __future__ import annotations
 
 import json
 import subprocess
+import sys
 import time
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
+import sqlalchemy as sa
 
 from analysis.data import load_study
 from analysis.data.streams import align
@@ -158,3 +160,89 @@ def test_a_fake_eye_tracker_is_recorded_and_the_outlets_read_back(
     assert np.allclose(state[:, -1], ticks["session_clock_s"].to_numpy(), atol=1e-9)
     assert np.allclose(state[:, 0], ticks["tick"].to_numpy())
     assert "<unit>m/s</unit>" in got_read["state_xml"] and "<codes>" in got_read["state_xml"]
+
+
+def test_a_required_stream_missing_is_one_line_and_nothing_starts(tmp_path, lsl_cfg):
+    protocol = _protocol(
+        tmp_path,
+        '[lsl]\nresolve_timeout_s = 0.5\n\n[[lsl.record]]\ntype = "EEG"\nname = "Nobody"\n',
+    )
+    db = tmp_path / "s.db"
+    cmd = [sys.executable, "-m", "study.cli", "run", "--protocol", str(protocol),
+           "--participant", "P01", "--db", str(db), "--input", "synthetic"]  # fmt: skip
+    done = subprocess.run(cmd, cwd=lsl_procs.ROOT, env=lsl_procs.env_with(lsl_cfg),
+                          capture_output=True, text=True, timeout=120)  # fmt: skip
+    assert done.returncode == 2, done.stderr
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and "type 'EEG', name 'Nobody'" in lines[0], done.stderr
+    assert "required" in lines[0] and not db.exists()  # nothing started
+
+
+def test_a_stream_killed_and_restarted_mid_trial_is_a_gap(tmp_path, lsl_cfg):
+    protocol = _protocol(tmp_path, "[lsl]\n" + TRACKER, timeout_s=3.0)
+    db = str(tmp_path / "s.db")
+    log = tmp_path / "tracker.log"
+    tracker, _ = _tracker(lsl_cfg, log)
+    again = None
+    session = _session(protocol, db, lsl_cfg)
+    try:
+        assert session.stdout.readline().strip() == "ticking"  # the first trial runs
+        time.sleep(0.3)
+        tracker.kill()
+        tracker.wait(timeout=10)
+        time.sleep(0.5)
+        again, _ = _tracker(lsl_cfg, tmp_path / "again.log", first=100_000)
+        out, err = session.communicate(timeout=90)
+        assert session.returncode == 0 and "status completed" in out, err
+    finally:
+        _stop(session, tracker, *([again] if again is not None else []))
+    engine = sa.create_engine(f"sqlite:///{db}")
+    with engine.connect() as conn:
+        gaps = conn.execute(sa.text("SELECT segment, start_clock_s, end_clock_s, trial_id "
+                                    "FROM lsl_gap")).all()  # fmt: skip
+        kinds = [r[0] for r in conn.execute(sa.text(
+            "SELECT kind FROM event WHERE kind LIKE 'lsl_stream_%' ORDER BY id"))]  # fmt: skip
+        segments = conn.execute(
+            sa.text("SELECT segment, SUM(n) FROM lsl_chunk GROUP BY segment ORDER BY segment")
+        ).all()
+        streams = conn.execute(sa.text("SELECT COUNT(*) FROM lsl_stream")).scalar()
+        trials = conn.execute(sa.text("SELECT status FROM trial")).scalars().all()
+    engine.dispose()
+    assert len(gaps) == 1 and gaps[0][0] == 0 and gaps[0][2] > gaps[0][1]
+    assert gaps[0][3] is not None  # lost while a trial ran
+    assert kinds == ["lsl_stream_lost", "lsl_stream_found"]
+    assert streams == 1 and [s for s, _ in segments] == [0, 1] and all(n > 0 for _, n in segments)
+    assert len(trials) == 2 and "aborted" not in trials
+    aligned = align(load_study(db).tables)
+    frame = next(iter(aligned.streams.values()))
+    assert (frame.loc[frame["segment"] == 1, "gaze_x"] >= 100_000).all()
+
+
+def test_lsl_without_pylsl_is_one_line_saying_how_to_get_it(tmp_path):
+    protocol = _protocol(tmp_path, "")
+    db = tmp_path / "s.db"
+    code = (  # pylsl as if not installed, then `asa run --lsl`
+        "import sys; sys.modules['pylsl'] = None; from study.cli import main; "
+        f"main(['run', '--protocol', {str(protocol)!r}, '--participant', 'P01', "
+        f"'--db', {str(db)!r}, '--lsl'])"
+    )
+    done = subprocess.run([sys.executable, "-c", code], cwd=lsl_procs.ROOT, capture_output=True,
+                          text=True, timeout=120)  # fmt: skip
+    err = done.stderr
+    assert done.returncode == 2 and len(err.strip().splitlines()) == 1, err
+    assert "pip install -e '.[lsl]'" in err and "conda-forge liblsl" in err
+    assert "PYLSL_LIB" in err and not db.exists()
+
+
+def test_a_bad_lsl_table_is_one_line(tmp_path, capsys):
+    from tests.cli_helpers import asa
+
+    for text, words in (
+        ("[lsl]\nwait = 3\n", "field 'lsl.wait': is not a known field"),
+        ("[lsl]\n[[lsl.record]]\nrequired = true\n", "give at least one of type, name"),
+        ('[lsl]\n[[lsl.record]]\nname = "a\'b"\n', "must not contain quotes"),
+        ("[lsl]\nresolve_timeout_s = -1\n", "lsl.resolve_timeout_s"),
+    ):
+        protocol = _protocol(tmp_path, text)
+        code, _, err = asa(capsys, "plan", "--protocol", protocol, "--participants", 2)
+        assert code == 2 and words in err and len(err.strip().splitlines()) == 1, (text, err)
