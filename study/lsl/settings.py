@@ -14,7 +14,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from sim.fields import FieldReader
-from study.engine.protocol.readers import boolean
 
 MAX_RECORD = 32  # [[lsl.record]] tables
 MAX_RESOLVE_S = 60.0  # [s] the longest wait for a required stream
@@ -63,6 +62,16 @@ class LslSettings:
     def records(self) -> bool:
         """Whether the session records any of the lab's streams."""
         return self.enabled and bool(self.record)
+
+
+def boolean(r: FieldReader, key: str, default: bool) -> bool:
+    """A true/false field (as :func:`study.engine.protocol.readers.boolean`, which this
+    module cannot import: the protocol's types import this module)."""
+    r.used.add(key)
+    value = r.data.get(key, default)
+    if not isinstance(value, bool):
+        raise r.fail(key, f"must be true or false, got {value!r}")
+    return value
 
 
 def _record(r: FieldReader) -> RecordSpec:

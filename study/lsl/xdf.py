@@ -260,7 +260,7 @@ def import_xdf(
     code = _participant(markers, participant, path)
     mine = [(t, m) for t, m in markers if m.get("participant") == code]
     source = f"{path.name} sha256:{hashlib.sha256(path.read_bytes()).hexdigest()}"
-    engine = open_database(db, create=False)
+    engine = open_database(db, create=False, readonly=False)
     try:
         with Session(engine) as s, s.begin():
             diffs, session_id = _pairs(s, mine, code, db)

@@ -1,0 +1,130 @@
+"""asa xdf import (issue 38): a LabRecorder-style XDF file, written in the test from the
+XDF specification (tests/xdf_writer.py), with this platform's markers of a session the
+study database holds and an EEG stream on another machine's clock; imported and aligned
+with the trials through the markers, then exported on the session's clock."""
+
+from __future__ import annotations
+
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+import sqlalchemy as sa
+
+from study.lsl.outlets import EVENT_NAME, marker
+from tests import lsl_procs
+from tests.cli_helpers import asa
+from tests.mini_protocol import mini_protocol
+from tests.xdf_writer import XdfStream, write_xdf
+
+pytest.importorskip("pylsl")
+pytest.importorskip("pyxdf")
+EEG_HZ = 250.0
+
+
+@pytest.fixture(scope="module")
+def lsl_study(tmp_path_factory) -> Path:
+    """A study whose session ran with the LSL outlets on (free-running, synthetic)."""
+    folder = tmp_path_factory.mktemp("xdf")
+    protocol = folder / "p.toml"
+    protocol.write_text(mini_protocol(timeout_s=3.0), encoding="utf-8")
+    db = folder / "s.db"
+    cfg = lsl_procs.write_config(folder)
+    args = ["--protocol", str(protocol), "--db", str(db), "--fast", "--lsl"]
+    proc = lsl_procs.start("session", args, cfg, stdout=subprocess.PIPE, text=True)
+    out, _ = proc.communicate(timeout=120)
+    assert "status completed" in out
+    return db
+
+
+def _ticks(db: Path) -> pd.DataFrame:
+    engine = sa.create_engine(f"sqlite:///{db}")
+    with engine.connect() as conn:
+        frame = pd.read_sql_query(
+            "SELECT s.trial_id, s.tick, s.t, s.lsl_clock_s, t.phase, t.ordinal, t.attempt "
+            "FROM sample s JOIN trial t ON t.id = s.trial_id ORDER BY s.id", conn)  # fmt: skip
+    engine.dispose()
+    return frame
+
+
+def _file(path: Path, ticks: pd.DataFrame, rng: np.random.Generator, *, shift: float,
+          marker_offset: float, eeg_offset: float) -> Path:  # fmt: skip
+    """The markers the session sent (trial starts, a sync marker every 20 ticks) and an EEG
+    stream, as a recorder whose clock is the session's minus ``shift`` saw them; each
+    stream's own clock is the recorder's minus its offset (stored as clock offsets)."""
+    times, values = [], []
+    for tid, g in ticks.groupby("trial_id", sort=True):
+        first = g.iloc[0]
+        detail = {"phase": first.phase, "ordinal": int(first.ordinal),
+                  "attempt": int(first.attempt), "scenario": "practice_course"}  # fmt: skip
+        times.append(first.lsl_clock_s - 0.01)
+        values.append([marker("trial_started", "P01", int(tid), None, 0.0, detail)])
+        for r in g[g["tick"] % 20 == 0].itertuples():
+            times.append(r.lsl_clock_s)
+            values.append([marker("sync", "P01", int(tid), int(r.tick), r.t, {})])
+    recorder = np.asarray(times) - shift
+    span = (recorder.min() - 2.0, recorder.max() + 2.0)
+    eeg_rec = np.arange(span[0], span[1], 1.0 / EEG_HZ)
+    eeg_values = np.column_stack([np.arange(len(eeg_rec)), rng.normal(size=(len(eeg_rec), 2))])
+    probes = np.linspace(span[0], span[1], 6)
+    return write_xdf(path, [
+        XdfStream(EVENT_NAME, "Markers", "string", 0.0, "asa-study/lab-pc/events",
+                  recorder - marker_offset, values,
+                  offsets=[(float(p), marker_offset) for p in probes]),
+        XdfStream("Cap", "EEG", "float32", EEG_HZ, "eeg-amp-7", eeg_rec - eeg_offset,
+                  eeg_values, labels=["index", "Cz", "Pz"],
+                  offsets=[(float(p), eeg_offset + rng.normal(0, 2e-5)) for p in probes]),
+    ])  # fmt: skip
+
+
+def test_an_xdf_file_is_imported_and_aligned_with_the_trials(lsl_study, tmp_path, capsys, rng):
+    ticks = _ticks(lsl_study)
+    assert ticks["lsl_clock_s"].notna().all()
+    shift = float(rng.uniform(-500, 500))
+    xdf = _file(tmp_path / "rec.xdf", ticks, rng, shift=shift, marker_offset=0.25,
+                eeg_offset=-7.0)  # fmt: skip
+    db = tmp_path / "s.db"
+    db.write_bytes(lsl_study.read_bytes())
+    code, out, err = asa(capsys, "xdf", "import", "--db", db, "--xdf", xdf)
+    assert code == 0, err
+    assert "P01: session 1" in out and "Cap:" in out
+    code, out, err = asa(capsys, "export", "--db", db, "--out", tmp_path / "csv", "--aligned")
+    assert code == 0, err
+    files = sorted(p.name for p in (tmp_path / "csv" / "aligned").iterdir())
+    assert files == ["events.csv", "offsets.csv", "stream-1-Cap.csv", "ticks.csv"]
+    eeg = pd.read_csv(tmp_path / "csv" / "aligned" / "stream-1-Cap.csv")
+    # where each sample was on the session's clock: the recorder's time plus the shift
+    span0 = (ticks["lsl_clock_s"].min() - 0.01) - shift - 2.0
+    expected = span0 + eeg["index"].to_numpy() / EEG_HZ + shift
+    # 1 ms: the issue's bar; the offsets' noise (20 us) and the fit are well inside it
+    assert np.abs(eeg["session_clock_s"].to_numpy() - expected).max() < 1e-3
+    inside = eeg[eeg["trial_id"] >= 0]
+    for tid, g in ticks.groupby("trial_id"):
+        mine = inside[inside["trial_id"] == tid]
+        assert len(mine) > 0
+        assert mine["session_clock_s"].min() >= g["lsl_clock_s"].min() - 0.05 - 1e-9
+        assert mine["session_clock_s"].max() <= g["lsl_clock_s"].max() + 1e-9
+    assert (eeg.loc[eeg["trial_id"] < 0, "trial_t_s"].isna()).all()
+    # a second import of the same file is refused; another participant is one line
+    code, _, err = asa(capsys, "xdf", "import", "--db", db, "--xdf", xdf)
+    assert code == 2 and "imported for session 1 already" in err
+    code, _, err = asa(capsys, "xdf", "import", "--db", db, "--xdf", xdf, "--participant", "P9")
+    assert code == 2 and "P9 has no markers" in err and len(err.strip().splitlines()) == 1
+
+
+def test_an_xdf_file_of_another_session_is_refused(lsl_study, tmp_path, capsys, rng):
+    ticks = _ticks(lsl_study)
+    last = ticks["trial_id"] == ticks["trial_id"].max()
+    ticks.loc[last, "lsl_clock_s"] += 0.5  # one trial's markers disagree with its ticks
+    xdf = _file(tmp_path / "rec.xdf", ticks, rng, shift=10.0, marker_offset=0.0,
+                eeg_offset=0.0)  # fmt: skip
+    db = tmp_path / "s.db"
+    db.write_bytes(lsl_study.read_bytes())
+    code, _, err = asa(capsys, "xdf", "import", "--db", db, "--xdf", xdf)
+    assert code == 2 and "disagree with the database's ticks" in err, err
+    bad = tmp_path / "bad.xdf"
+    bad.write_bytes(b"not an xdf file")
+    code, _, err = asa(capsys, "xdf", "import", "--db", db, "--xdf", bad)
+    assert code == 2 and "not a readable XDF file" in err and len(err.strip().splitlines()) == 1
