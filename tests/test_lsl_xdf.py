@@ -13,6 +13,7 @@ import pandas as pd
 import pytest
 import sqlalchemy as sa
 
+from analysis.report import build_report
 from study.lsl.outlets import EVENT_NAME, marker
 from tests import lsl_procs
 from tests.cli_helpers import asa
@@ -26,16 +27,19 @@ EEG_HZ = 250.0
 
 @pytest.fixture(scope="module")
 def lsl_study(tmp_path_factory) -> Path:
-    """A study whose session ran with the LSL outlets on (free-running, synthetic)."""
+    """A study of two participants whose sessions ran with the LSL outlets on
+    (free-running, synthetic)."""
     folder = tmp_path_factory.mktemp("xdf")
     protocol = folder / "p.toml"
     protocol.write_text(mini_protocol(timeout_s=3.0), encoding="utf-8")
     db = folder / "s.db"
     cfg = lsl_procs.write_config(folder)
-    args = ["--protocol", str(protocol), "--db", str(db), "--fast", "--lsl"]
-    proc = lsl_procs.start("session", args, cfg, stdout=subprocess.PIPE, text=True)
-    out, _ = proc.communicate(timeout=120)
-    assert "status completed" in out
+    for code in ("P01", "P02"):
+        args = ["--protocol", str(protocol), "--db", str(db), "--fast", "--lsl",
+                "--participant", code, "--seed", str(len(code) + int(code[-1]))]  # fmt: skip
+        proc = lsl_procs.start("session", args, cfg, stdout=subprocess.PIPE, text=True)
+        out, _ = proc.communicate(timeout=120)
+        assert "status completed" in out
     return db
 
 
@@ -44,7 +48,8 @@ def _ticks(db: Path) -> pd.DataFrame:
     with engine.connect() as conn:
         frame = pd.read_sql_query(
             "SELECT s.trial_id, s.tick, s.t, s.lsl_clock_s, t.phase, t.ordinal, t.attempt "
-            "FROM sample s JOIN trial t ON t.id = s.trial_id ORDER BY s.id", conn)  # fmt: skip
+            "FROM sample s JOIN trial t ON t.id = s.trial_id JOIN participant p "
+            "ON p.id = t.participant_id WHERE p.code = 'P01' ORDER BY s.id", conn)  # fmt: skip
     engine.dispose()
     return frame
 
@@ -112,6 +117,14 @@ def test_an_xdf_file_is_imported_and_aligned_with_the_trials(lsl_study, tmp_path
     assert code == 2 and "imported for session 1 already" in err
     code, _, err = asa(capsys, "xdf", "import", "--db", db, "--xdf", xdf, "--participant", "P9")
     assert code == 2 and "P9 has no markers" in err and len(err.strip().splitlines()) == 1
+    # the report: per participant and trial, the stream's samples; a channel over a trial
+    paths = build_report(db, tmp_path / "report")
+    lab = pd.read_csv(tmp_path / "report" / "tables" / "lab_streams.csv")
+    assert set(lab["participant"]) == {"P01"} and set(lab["stream"]) == {"Cap"}
+    assert set(lab["trial_id"]) == set(ticks["trial_id"]) and (lab["samples"] > 0).all()
+    assert (lab["gaps"] == 0).all() and (lab["offset_spread_ms"] < 1.0).all()
+    html = paths.html.read_text(encoding="utf-8")
+    assert "The lab's streams" in html and "lab_stream_channel.png" in html
 
 
 def test_an_xdf_file_of_another_session_is_refused(lsl_study, tmp_path, capsys, rng):
