@@ -31,6 +31,7 @@ GROUPS: dict[str, str] = {
     "storage": "study.bench.storage",
     "power": "study.bench.power",
     "push": "study.bench.push",
+    "lsl": "study.bench.lsl",
 }
 
 

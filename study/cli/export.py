@@ -26,8 +26,9 @@ from study.cli import db_option, flag_errors
 )
 def export_command(path: str, out: Path, force: bool, aligned: bool) -> None:
     """Write one CSV per table (study, participant, session, trial, sample, event,
-    question, response, meta, and the lab's streams: lsl_stream, lsl_chunk with its
-    samples as base64, lsl_offset, lsl_gap) into --out; JSON columns as JSON text.
+    question, response, meta; and where the study recorded or imported the lab's streams,
+    lsl_stream, lsl_chunk with its samples as base64, lsl_offset, lsl_gap) into --out;
+    JSON columns as JSON text.
 
     With --aligned also --out/aligned/: ticks.csv, events.csv and offsets.csv, and one
     stream-<id>-<name>.csv per stream with its samples on the session's clock

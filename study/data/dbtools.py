@@ -405,6 +405,10 @@ def remove_recordings_of(db: str | Path) -> list[Path]:
 # ------------------------------------------------------------------------- export
 
 
+def _has_rows(conn: Any, table: Any) -> bool:
+    return conn.execute(select(table.c.id).limit(1)).first() is not None
+
+
 def _cell(value: Any, is_json: bool) -> str:
     if value is None:
         return ""
@@ -452,6 +456,8 @@ def export(db: str | Path, out: str | Path, *, force: bool = False) -> dict[str,
             for table in Base.metadata.sorted_tables:
                 if table.name not in present:
                     continue  # order_slot in a database made before issue 20
+                if table.name.startswith("lsl_") and not _has_rows(conn, table):
+                    continue  # the lab's streams: only in a study that recorded some
                 columns = list(table.columns)
                 json_cols = [isinstance(c.type, JSON) for c in columns]
                 n = 0

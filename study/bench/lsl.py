@@ -1,0 +1,201 @@
+"""Benchmark group ``lsl``: the session on the lab's clock (issue 38; DESIGN.md budgets),
+on loopback with this process's own LSL configuration (machine scope, IPv6 off, a fresh
+session id).
+
+- ``lsl_marker_latency_ms``: a marker's latency from ``push_sample`` (its timestamp, the
+  pusher's ``local_clock()``) to an inlet's ``pull_sample`` in another process, p50 / p99
+  over markers 10 ms apart (DESIGN.md: p99 < 5 ms);
+- ``lsl_recorded_samples_per_s`` and ``lsl_lost_samples``: four streams of 500 Hz x 8
+  channels pushed by another process (chunks of 5 samples every 10 ms) and recorded into
+  the study database (SQLite) while a 20 Hz session paced by the wall clock runs with its
+  outlets on: the samples stored per second of the recording, and the samples pushed while
+  it recorded that are missing from the database (DESIGN.md: none lost);
+- ``lsl_tick_jitter_p99_ms`` with LSL on (those four streams recorded) and off, and their
+  difference ``lsl_jitter_p99_delta_ms`` (DESIGN.md: within 1 ms).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import textwrap
+import time
+import uuid
+from pathlib import Path
+
+import numpy as np
+
+STREAMS, RATE_HZ, CHANNELS = 4, 500.0, 8
+_PUSHER = textwrap.dedent(
+    """
+    import sys, time, numpy as np, pylsl
+    n, rate, ch, log = int(sys.argv[1]), float(sys.argv[2]), int(sys.argv[3]), sys.argv[4]
+    outs = []
+    for i in range(n):
+        info = pylsl.StreamInfo(f"BenchEEG{i}", "BenchEEG", ch, rate, "float32", f"bench-{i}")
+        outs.append(pylsl.StreamOutlet(info, chunk_size=5))
+    print("ready", flush=True)
+    per, k, start = 5, 0, pylsl.local_clock()
+    first = {}
+    while True:
+        now = pylsl.local_clock()
+        due = int((now - start) * rate)
+        while k < due:
+            stamps = start + (k + np.arange(per)) / rate
+            block = np.zeros((per, ch), dtype=np.float32)
+            block[:, 0] = k + np.arange(per)
+            for o in outs:
+                o.push_chunk(block, stamps)
+            k += per
+        with open(log, "w") as f:
+            f.write(f"{start!r} {k}")
+        time.sleep(0.01)
+    """
+)
+_READER = textwrap.dedent(
+    """
+    import sys, json, pylsl
+    found = pylsl.resolve_byprop("name", sys.argv[1], 1, 20.0)
+    inlet = pylsl.StreamInlet(found[0])
+    inlet.open_stream(timeout=10.0)
+    print("ready", flush=True)
+    lat = []
+    for _ in range(int(sys.argv[2])):
+        sample, ts = inlet.pull_sample(timeout=10.0)
+        if sample is None:
+            break
+        lat.append(pylsl.local_clock() - ts)
+    print(json.dumps(lat), flush=True)
+    """
+)
+
+
+def _config(folder: Path) -> dict[str, str]:
+    cfg = folder / "lsl_api.cfg"
+    cfg.write_text(
+        "[ports]\nIPv6 = disable\n[multicast]\nResolveScope = machine\n"
+        f"[lab]\nSessionID = asa-bench-{uuid.uuid4().hex}\n[log]\nlevel = -3\n",
+        encoding="utf-8",
+    )
+    os.environ["LSLAPICFG"] = str(cfg)  # before this process loads liblsl
+    return dict(os.environ)
+
+
+def _marker_latency(env: dict[str, str], n: int) -> dict[str, float]:
+    from study.lsl import runtime
+
+    lsl = runtime.pylsl()
+    name = f"bench-markers-{uuid.uuid4().hex[:8]}"
+    outlet = lsl.StreamOutlet(
+        lsl.StreamInfo(name, "Markers", 1, lsl.IRREGULAR_RATE, lsl.cf_string, name)
+    )
+    reader = subprocess.Popen([sys.executable, "-c", _READER, name, str(n)], env=env,
+                              stdout=subprocess.PIPE, text=True)  # fmt: skip
+    assert reader.stdout is not None
+    reader.stdout.readline()
+    outlet.wait_for_consumers(10.0)
+    time.sleep(0.2)
+    for i in range(n):
+        outlet.push_sample([json.dumps({"event": "bench", "i": i})], lsl.local_clock())
+        time.sleep(0.01)
+    lat = np.asarray(json.loads(reader.stdout.readline())) * 1e3
+    reader.wait(timeout=20)
+    return {"p50": round(float(np.percentile(lat, 50)), 3),
+            "p99": round(float(np.percentile(lat, 99)), 3), "n": len(lat)}  # fmt: skip
+
+
+def _session(folder: Path, *, lsl: bool, trial_s: float) -> tuple[Path, float | None]:
+    """One paced session of two ``trial_s`` trials; LSL on: the four bench streams recorded
+    and the outlets open. Its database and the trials' worst tick jitter p99 [ms]."""
+    from sqlalchemy import create_engine, text
+
+    from study.engine.clocks import WallClock
+    from study.engine.protocol import parse_protocol
+    from study.engine.session import run_session
+    from study.participants import ScriptedParticipant
+
+    record = '\n[lsl]\n\n[[lsl.record]]\ntype = "BenchEEG"\n' if lsl else ""
+    text_ = _protocol(trial_s) + record
+    protocol = parse_protocol(text_, str(folder / "bench.toml"))
+    db = folder / f"bench-{'on' if lsl else 'off'}.db"
+    run_session(protocol, "B01", db, participant=ScriptedParticipant(np.random.default_rng(1)),
+                seed=1, clock=WallClock(), record=False, lsl=None if lsl else False)  # fmt: skip
+    engine = create_engine(f"sqlite:///{db}")
+    with engine.connect() as conn:
+        jitter = conn.execute(text("SELECT MAX(tick_jitter_ms) FROM trial")).scalar()
+    engine.dispose()
+    return db, jitter
+
+
+def _protocol(trial_s: float) -> str:
+    return textwrap.dedent(
+        f"""
+        [study]
+        name = "bench-lsl"
+        [modes]
+        names = ["manual", "reactive_bn"]
+        [[phases]]
+        kind = "main"
+        scenario = "practice_course"
+        route = ["A", "B"]
+        inspection = false
+        secondary = false
+        timeout_s = {trial_s:g}
+        """
+    )
+
+
+def _recorded(db: Path) -> tuple[int, int, float]:
+    """(samples stored, samples missing inside each stream's stored span, span [s])."""
+    from sqlalchemy import create_engine, text
+
+    engine = create_engine(f"sqlite:///{db}")
+    stored = missing = 0
+    spans = []
+    with engine.connect() as conn:
+        for (sid,) in conn.execute(text("SELECT id FROM lsl_stream")):
+            rows = conn.execute(text("SELECT data, timestamps FROM lsl_chunk WHERE stream_id = "
+                                     ":s ORDER BY id"), {"s": sid}).all()  # fmt: skip
+            seq = np.concatenate([np.frombuffer(d, "<f8").reshape(-1, CHANNELS)[:, 0]
+                                  for d, _ in rows])  # fmt: skip
+            ts = np.concatenate([np.frombuffer(t, "<f8") for _, t in rows])
+            stored += len(seq)
+            missing += int(seq.max() - seq.min() + 1 - len(np.unique(seq)))
+            spans.append(float(ts[-1] - ts[0]))
+    engine.dispose()
+    return stored, missing, float(np.mean(spans)) if spans else 0.0
+
+
+def run(quick: bool = False) -> dict:
+    """The ``lsl`` figures (see the module docstring)."""
+    trial_s = 4.0 if quick else 15.0
+    with tempfile.TemporaryDirectory(prefix="asa-bench-lsl-") as tmp:
+        folder = Path(tmp)
+        env = _config(folder)
+        latency = _marker_latency(env, 100 if quick else 500)
+        _, off = _session(folder, lsl=False, trial_s=trial_s)
+        log = folder / "pusher.txt"
+        pusher = subprocess.Popen(
+            [sys.executable, "-c", _PUSHER, str(STREAMS), str(RATE_HZ), str(CHANNELS), str(log)],
+            env=env, stdout=subprocess.PIPE, text=True,
+        )  # fmt: skip
+        try:
+            assert pusher.stdout is not None
+            pusher.stdout.readline()
+            db, on = _session(folder, lsl=True, trial_s=trial_s)
+        finally:
+            pusher.kill()
+            pusher.wait(timeout=10)
+        stored, missing, span = _recorded(db)
+    return {
+        "lsl_marker_latency_ms": latency,
+        "lsl_streams": f"{STREAMS} x {RATE_HZ:g} Hz x {CHANNELS} channels",
+        "lsl_recorded_samples": stored,
+        "lsl_recorded_samples_per_s": round(stored / span, 1) if span else None,
+        "lsl_lost_samples": missing,
+        "lsl_tick_jitter_p99_ms": {"on": on, "off": off},
+        "lsl_jitter_p99_delta_ms": None if on is None or off is None else round(on - off, 3),
+    }
