@@ -28,7 +28,7 @@ from study.data.storage import Event, LslChunk, LslGap, LslOffset, LslStream, ut
 from study.lsl.settings import OFFSET_EVERY_S, RecordSpec
 
 FLUSH_EVERY_S = 1.0  # [s] between two writes of the buffered samples
-POLL_S = 0.005  # [s] between two pulls of every inlet
+POLL_S = 0.02  # [s] between two pulls of every inlet (liblsl buffers between)
 WATCH_EVERY_S = 0.25  # [s] between two looks at the resolvers (streams back, new ones)
 MAX_CHUNK = 8192  # samples pulled at once
 _INT_FORMATS = ("int8", "int16", "int32", "int64")
@@ -120,7 +120,6 @@ class StreamRecorder:
         self.resolvers: list[Any] = []
         self.failure: BaseException | None = None
         self._stop = threading.Event()
-        self._lock = threading.Lock()
         self._thread: threading.Thread | None = None
 
     # ------------------------------------------------------------------ control
