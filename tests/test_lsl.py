@@ -246,3 +246,26 @@ def test_a_bad_lsl_table_is_one_line(tmp_path, capsys):
         protocol = _protocol(tmp_path, text)
         code, _, err = asa(capsys, "plan", "--protocol", protocol, "--participants", 2)
         assert code == 2 and words in err and len(err.strip().splitlines()) == 1, (text, err)
+
+
+def test_only_study_lsl_imports_pylsl_and_only_when_used(tmp_path):
+    """pylsl and pyxdf are imported by study/lsl/runtime.py alone (lazily), and a session
+    without LSL never loads them."""
+    root = lsl_procs.ROOT
+    for package in ("sim", "autonomy", "tasks", "questionnaires", "study", "analysis"):
+        for path in (root / package).rglob("*.py"):
+            text = path.read_text(encoding="utf-8")
+            if "import pylsl" in text or "import pyxdf" in text:
+                assert path == root / "study" / "lsl" / "runtime.py", path
+    protocol = _protocol(tmp_path, "")
+    code = (
+        "import sys, numpy as np; from study.engine.protocol import load_protocol; "
+        "from study.engine.session import run_session; "
+        "from study.participants import ScriptedParticipant; "
+        f"run_session(load_protocol({str(protocol)!r}), 'P01', {str(tmp_path / 's.db')!r}, "
+        "participant=ScriptedParticipant(np.random.default_rng(1)), record=False); "
+        "print('pylsl' in sys.modules, 'pyxdf' in sys.modules)"
+    )
+    done = subprocess.run([sys.executable, "-c", code], cwd=root, capture_output=True,
+                          text=True, timeout=120, check=True)  # fmt: skip
+    assert done.stdout.split() == ["False", "False"]

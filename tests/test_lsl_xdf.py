@@ -141,3 +141,29 @@ def test_an_xdf_file_of_another_session_is_refused(lsl_study, tmp_path, capsys, 
     bad.write_bytes(b"not an xdf file")
     code, _, err = asa(capsys, "xdf", "import", "--db", db, "--xdf", bad)
     assert code == 2 and "not a readable XDF file" in err and len(err.strip().splitlines()) == 1
+
+
+def test_the_lab_streams_go_with_a_pushed_session(lsl_study, tmp_path, capsys, rng):
+    """asa db push carries the imported streams, their chunks and offsets with their
+    session."""
+    ticks = _ticks(lsl_study)
+    xdf = _file(tmp_path / "rec.xdf", ticks, rng, shift=3.0, marker_offset=0.0, eeg_offset=1.0)
+    site = tmp_path / "site.db"
+    site.write_bytes(lsl_study.read_bytes())
+    assert asa(capsys, "xdf", "import", "--db", site, "--xdf", xdf)[0] == 0
+    study = tmp_path / "study.db"
+    code, _, err = asa(capsys, "db", "push", "--from", site, "--to", study)
+    assert code == 0, err
+
+    def streams(db: Path) -> list[tuple]:
+        engine = sa.create_engine(f"sqlite:///{db}")
+        with engine.connect() as conn:
+            rows = conn.execute(sa.text(
+                "SELECT p.code, s.name, s.clock_shift_s, (SELECT SUM(n) FROM lsl_chunk c "
+                "WHERE c.stream_id = s.id), (SELECT COUNT(*) FROM lsl_offset o WHERE "
+                "o.stream_id = s.id) FROM lsl_stream s JOIN session e ON e.id = s.session_id "
+                "JOIN participant p ON p.id = e.participant_id")).all()  # fmt: skip
+        engine.dispose()
+        return [tuple(r) for r in rows]
+
+    assert streams(study) == streams(site) and len(streams(site)) == 1
