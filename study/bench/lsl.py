@@ -10,6 +10,11 @@ session id).
   the study database (SQLite) while a 20 Hz session paced by the wall clock runs with its
   outlets on: the samples stored per second of the recording, and the samples pushed while
   it recorded that are missing from the database (DESIGN.md: none lost);
+- ``lsl_tick_cost_us``: what LSL adds to one control tick (the tick's clock, its state
+  sample, a marker every 20 ticks: :class:`study.lsl.session.SessionLsl`), p50 / p99 over
+  2,000 ticks with an inlet connected; and ``lsl_recorder_cpu_share``, the recording
+  thread's CPU time per second of recording those four streams into SQLite: the cost
+  behind the jitter figures, which a loaded machine's scheduling dominates;
 - ``lsl_tick_jitter_p99_ms`` with LSL on (those four streams recorded, the outlets open)
   and off (the streams still pushed, nobody recording), the median over interleaved pairs
   of sessions (3; 1 with ``quick``) of each session's worst trial p99 of ``|period - 50
@@ -109,9 +114,60 @@ def _marker_latency(env: dict[str, str], n: int) -> dict[str, float]:
             "p99": round(float(np.percentile(lat, 99)), 3), "n": len(lat)}  # fmt: skip
 
 
-def _session(folder: Path, *, lsl: bool, trial_s: float) -> tuple[Path, float | None]:
+def _tick_cost(n: int) -> dict[str, float]:
+    """[us] per tick of :meth:`SessionLsl.tick` and :meth:`SessionLsl.state`."""
+    from sim.types import Pose2D
+    from study.lsl import runtime
+    from study.lsl.outlets import OutletNames, SessionOutlets
+    from study.lsl.session import SessionLsl
+    from study.types import TickRecord
+
+    lsl = runtime.pylsl()
+    outlets = SessionOutlets(lsl, OutletNames(f"bench-{uuid.uuid4().hex[:8]}"))
+    found = lsl.resolve_byprop("source_id", outlets.names.state_source_id, 1, 10.0)
+    inlet = lsl.StreamInlet(found[0])
+    inlet.open_stream(timeout=10.0)
+    link = SessionLsl(lsl, "B01", outlets=outlets, recorder=None, mode_names=False)
+    link.begin_trial(1, {"phase": "main", "ordinal": 0, "attempt": 0, "scenario": "bench"})
+    zero = np.zeros(3)
+    costs = np.empty(n)
+    for i in range(n):
+        start = time.perf_counter()
+        stamp = link.tick(i, i * 0.05)
+        record = TickRecord(i, i * 0.05, Pose2D(0.0, 0.0, 0.0), zero, zero, 0.0, "", "", 1.0,
+                            False, lsl_clock_s=stamp)  # fmt: skip
+        link.state(record, zero)
+        costs[i] = time.perf_counter() - start
+        inlet.pull_chunk(0.0)
+    link.close()
+    us = costs * 1e6
+    return {"p50": round(float(np.percentile(us, 50)), 1),
+            "p99": round(float(np.percentile(us, 99)), 1)}  # fmt: skip
+
+
+def _session(
+    folder: Path, *, lsl: bool, trial_s: float, recorders: list | None = None
+) -> tuple[Path, float | None]:
     """One paced session of two ``trial_s`` trials; LSL on: the four bench streams recorded
-    and the outlets open. Its database and the trials' worst tick jitter p99 [ms]."""
+    and the outlets open (its recorder appended to ``recorders``). Its database and the
+    trials' worst tick jitter p99 [ms]."""
+    from study.lsl import session as lsl_session
+
+    made = recorders if recorders is not None else []
+
+    class Kept(lsl_session.StreamRecorder):  # the session's recorder, for its CPU time
+        def __init__(self, *args: object, **kwargs: object) -> None:
+            super().__init__(*args, **kwargs)  # type: ignore[arg-type]
+            made.append(self)
+
+    original, lsl_session.StreamRecorder = lsl_session.StreamRecorder, Kept
+    try:
+        return _one_session(folder, lsl=lsl, trial_s=trial_s)
+    finally:
+        lsl_session.StreamRecorder = original
+
+
+def _one_session(folder: Path, *, lsl: bool, trial_s: float) -> tuple[Path, float | None]:
     from sqlalchemy import create_engine, text
 
     from study.engine.clocks import WallClock
@@ -180,18 +236,20 @@ def run(quick: bool = False) -> dict:
         folder = Path(tmp)
         env = _config(folder)
         latency = _marker_latency(env, 100 if quick else 500)
+        tick_cost = _tick_cost(500 if quick else 2000)
         log = folder / "pusher.txt"
         pusher = subprocess.Popen(
             [sys.executable, "-c", _PUSHER, str(STREAMS), str(RATE_HZ), str(CHANNELS), str(log)],
             env=env, stdout=subprocess.PIPE, text=True,
         )  # fmt: skip
-        off, on, recorded = [], [], []
+        off, on, recorded, recorders = [], [], [], []
         try:
             assert pusher.stdout is not None
             pusher.stdout.readline()
             for k in range(pairs):  # interleaved, so that the machine's load hits both
                 off.append(_session(folder / f"off{k}", lsl=False, trial_s=trial_s)[1])
-                db, jitter = _session(folder / f"on{k}", lsl=True, trial_s=trial_s)
+                db, jitter = _session(folder / f"on{k}", lsl=True, trial_s=trial_s,
+                                      recorders=recorders)  # fmt: skip
                 on.append(jitter)
                 recorded.append(_recorded(db))
         finally:
@@ -200,8 +258,13 @@ def run(quick: bool = False) -> dict:
     stored = sum(r[0] for r in recorded)
     span = sum(r[2] for r in recorded) / STREAMS
     med_on, med_off = _median(on), _median(off)
+    wall = sum(r.wall_s for r in recorders)
     return {
         "lsl_marker_latency_ms": latency,
+        "lsl_tick_cost_us": tick_cost,
+        "lsl_recorder_cpu_share": round(sum(r.cpu_s for r in recorders) / wall, 4)
+        if wall
+        else None,
         "lsl_streams": f"{STREAMS} x {RATE_HZ:g} Hz x {CHANNELS} channels",
         "lsl_recorded_samples": stored,
         "lsl_recorded_samples_per_s": round(stored / span, 1) if span else None,

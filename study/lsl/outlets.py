@@ -111,7 +111,7 @@ class SessionOutlets:
     """The event and state outlets of one session (created at the session's start)."""
 
     def __init__(self, lsl: ModuleType, names: OutletNames) -> None:
-        self.lsl = lsl
+        self.lsl, self.names = lsl, names
         self.codes: dict[str, int] = {label: i for i, label in enumerate(BASE_CODES)}
         events = lsl.StreamInfo(
             EVENT_NAME, EVENT_TYPE, 1, lsl.IRREGULAR_RATE, lsl.cf_string, names.events_source_id

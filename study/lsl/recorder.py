@@ -119,6 +119,8 @@ class StreamRecorder:
         self.pending_offsets: list[dict[str, Any]] = []
         self.resolvers: list[Any] = []
         self.failure: BaseException | None = None
+        self.cpu_s = 0.0  # [s] CPU time of the recording thread, known after stop()
+        self.wall_s = 0.0  # [s] how long it ran, known after stop()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
 
@@ -152,7 +154,7 @@ class StreamRecorder:
 
     def _run(self) -> None:
         clock = self.lsl.local_clock
-        next_flush = next_watch = clock()
+        next_flush = next_watch = started = clock()
         try:
             while not self._stop.is_set():
                 now = clock()
@@ -169,6 +171,8 @@ class StreamRecorder:
             self._flush()
         except BaseException as error:  # a bug or the database: stop() re-raises it
             self.failure = error
+        finally:
+            self.cpu_s, self.wall_s = time.thread_time(), clock() - started
 
     def _pull_all(self, now: float) -> None:
         lost_error = self.lsl.util.LostError
