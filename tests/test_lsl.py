@@ -27,7 +27,8 @@ from tests.mini_protocol import mini_protocol
 
 pytest.importorskip("pylsl")
 CLOCK_OFFSET_S = 1000  # [s] the fake tracker's clock ahead of ours (time namespace)
-BACKENDS = ["sqlite", pytest.param("postgresql", marks=pytest.mark.postgres)]
+# (backend, [lsl] mode_names): the mode's name in the markers only where the protocol says
+BACKENDS = [("sqlite", False), pytest.param("postgresql", True, marks=pytest.mark.postgres)]
 
 
 @pytest.fixture
@@ -96,15 +97,16 @@ def _stop(*procs: subprocess.Popen) -> None:
         p.wait(timeout=10)
 
 
-@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize(("backend", "mode_names"), BACKENDS)
 def test_a_fake_eye_tracker_is_recorded_and_the_outlets_read_back(
-    backend, request, tmp_path, lsl_cfg, seed
+    backend, mode_names, request, tmp_path, lsl_cfg, seed
 ):
     """Every tracker sample pushed while the trials ran is in the database, mapped to the
     session's clock within 1 ms of when it was pushed; an inlet reads every event, in
     order, and every tick's state with the tick's clock."""
     db = _db(backend, request, tmp_path)
-    protocol = _protocol(tmp_path, "[lsl]\nwait_for_consumers_s = 30\n" + TRACKER, seed=seed % 1000)
+    lsl = f"[lsl]\nwait_for_consumers_s = 30\nmode_names = {str(mode_names).lower()}\n"
+    protocol = _protocol(tmp_path, lsl + TRACKER, seed=seed % 1000)
     log = tmp_path / "tracker.log"
     tracker, offset = _tracker(lsl_cfg, log)
     ready, read = tmp_path / "ready", tmp_path / "read.json"
@@ -154,7 +156,9 @@ def test_a_fake_eye_tracker_is_recorded_and_the_outlets_read_back(
     ]
     assert read_trial == trial_events
     assert all(m["participant"] == "P01" for m in markers)
-    assert "mode" not in json.dumps([m for m in markers if m["event"] == "trial_started"])
+    started = [m for m in markers if m["event"] == "trial_started"]
+    modes = data.tables["trial"].sort_values("id")["mode"].tolist()
+    assert [m.get("mode") for m in started] == (modes if mode_names else [None, None])
     state = np.array(got_read["state"])
     assert len(state) == len(ticks)
     assert np.allclose(state[:, -1], ticks["session_clock_s"].to_numpy(), atol=1e-9)
