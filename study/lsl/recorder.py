@@ -129,7 +129,7 @@ class StreamRecorder:
     def start(self, found: Sequence[tuple[Any, RecordSpec]]) -> None:
         """Open an inlet on each stream ``found`` and record in a thread until :meth:`stop`."""
         for info, spec in found:
-            self._connect(info, spec)
+            self._try_connect(info, spec)
         self.resolvers = [self.lsl.ContinuousResolver(pred=s.predicate()) for s in self.specs]
         self._thread = threading.Thread(target=self._run, name="asa-lsl-recorder", daemon=True)
         self._thread.start()
@@ -218,16 +218,26 @@ class StreamRecorder:
         for spec, resolver in zip(self.specs, self.resolvers, strict=True):
             for info in resolver.results():
                 if info.uid() not in live and info.uid() not in self.dead:
-                    self._connect(info, spec)
-                    live.add(info.uid())
+                    if self._try_connect(info, spec):
+                        live.add(info.uid())
 
     # ------------------------------------------------------------------ streams
+
+    def _try_connect(self, info: Any, spec: RecordSpec) -> bool:
+        """:meth:`_connect`, or False for a stream gone before its inlet opened (the
+        resolvers offer it again if it comes back)."""
+        try:
+            self._connect(info, spec)
+        except (self.lsl.util.LostError, self.lsl.util.TimeoutError):
+            return False
+        return True
 
     def _connect(self, info: Any, spec: RecordSpec) -> None:
         """An inlet on ``info``: a new stream row, or a new segment of the row of a stream
         with the same name, type, source id and host (one that came back)."""
         inlet = self.lsl.StreamInlet(info, max_buflen=360, recover=False)
         full = inlet.info(timeout=5.0)  # the header, with the description
+        inlet.open_stream(timeout=5.0)
         identity = (full.name(), full.type(), full.source_id(), full.hostname())
         known = self.rows.get(identity)
         if known is None:
@@ -236,7 +246,6 @@ class StreamRecorder:
             stream_id, segment = known[0], known[1]
             self._found(stream_id, identity)
         self.rows[identity] = (stream_id, segment + 1)
-        inlet.open_stream(timeout=5.0)
         self.connections.append(
             _Connection(
                 stream_id,
