@@ -76,6 +76,14 @@ def fit_offsets(
     return float(a * winsor_s), float(b)
 
 
+def corrected(timestamps_s: np.ndarray, clock_s: np.ndarray, offset_s: np.ndarray) -> np.ndarray:
+    """A stream's timestamps [s, its clock] on the clock its offsets were measured against
+    (an XDF file's: the recorder's), the offsets fitted by :func:`fit_offsets`."""
+    ts = np.asarray(timestamps_s, dtype=float)
+    a, b = fit_offsets(clock_s, offset_s)
+    return ts + a + b * ts
+
+
 def decode(blob: bytes | str, dtype: str, channels: int) -> np.ndarray:
     """A chunk's stored values (``lsl_chunk.data``; base64 text from a CSV export) as
     ``(n, channels)``: float64, int64, or object for string streams."""

@@ -25,7 +25,7 @@ import numpy as np
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from analysis.data.streams import fit_offsets
+from analysis.data.streams import corrected
 from study.data.storage import (
     LslChunk,
     LslOffset,
@@ -59,9 +59,9 @@ class ImportSummary:
 
 def _corrected(stream: dict[str, Any]) -> np.ndarray:
     """A stream's timestamps on the recorder's clock (its offsets fitted as pyxdf does)."""
-    ts = np.asarray(stream["time_stamps"], dtype=float)
-    a, b = fit_offsets(stream.get("clock_times", []), stream.get("clock_values", []))
-    return ts + a + b * ts
+    return corrected(
+        stream["time_stamps"], stream.get("clock_times", []), stream.get("clock_values", [])
+    )
 
 
 def _info(stream: dict[str, Any], key: str, default: str = "") -> str:
