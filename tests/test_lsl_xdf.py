@@ -197,3 +197,19 @@ def test_offsets_are_fitted_as_pyxdf_fits_them(tmp_path, rng):
     theirs, _ = pyxdf.load_xdf(str(path), synchronize_clocks=True, dejitter_timestamps=False)
     ours = corrected(ts, probes, offsets)
     assert np.abs(theirs[0]["time_stamps"] - ours).max() < 1e-6
+
+
+def test_aligned_export_of_a_study_without_lsl_is_one_line(tmp_path, capsys):
+    from study.engine.protocol import load_protocol
+    from study.engine.session import run_session
+    from study.participants import ScriptedParticipant
+
+    protocol = tmp_path / "p.toml"
+    protocol.write_text(mini_protocol(timeout_s=1.0), encoding="utf-8")
+    db = tmp_path / "s.db"
+    run_session(load_protocol(protocol), "P01", db, record=False,
+                participant=ScriptedParticipant(np.random.default_rng(1)))  # fmt: skip
+    code, _, err = asa(capsys, "export", "--db", db, "--out", tmp_path / "csv", "--aligned")
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert "no tick has an LSL clock" in err and "asa run --lsl" in err
+    assert not list((tmp_path / "csv").glob("lsl_*.csv"))  # no LSL tables without rows
