@@ -273,3 +273,20 @@ def test_only_study_lsl_imports_pylsl_and_only_when_used(tmp_path):
     done = subprocess.run([sys.executable, "-c", code], cwd=root, capture_output=True,
                           text=True, timeout=120, check=True)  # fmt: skip
     assert done.stdout.split() == ["False", "False"]
+
+
+@pytest.mark.slow
+def test_the_lsl_bench_group_reports_its_figures():
+    """``asa bench --only lsl --quick`` (about 25 s: marked slow), in its own process: the
+    bench loads liblsl with a configuration of its own."""
+    done = subprocess.run(
+        [sys.executable, "-m", "study.cli", "bench", "--only", "lsl", "--quick", "--json"],
+        cwd=lsl_procs.ROOT, capture_output=True, text=True, timeout=300, check=True,
+    )  # fmt: skip
+    figures = json.loads(done.stdout)
+    assert figures["lsl_lost_samples"] == 0 and figures["lsl_recorded_samples"] > 1000
+    assert set(figures["budgets"]) == {
+        "lsl_marker_latency_ms.p99", "lsl_lost_samples", "lsl_recorded_samples_per_s",
+        "lsl_jitter_p99_delta_ms",
+    }  # fmt: skip
+    assert figures["lsl_tick_cost_us"]["p99"] > 0 and 0 < figures["lsl_recorder_cpu_share"] < 1
