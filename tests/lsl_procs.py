@@ -68,8 +68,11 @@ def time_namespace_prefix(offset_s: int) -> list[str]:
 def start(
     kind: str, args: list[str], config: Path, *, prefix: list[str] | None = None, **popen: object
 ) -> subprocess.Popen:
+    """``kind`` in a process of its own, in the folder of its configuration (the test's:
+    a server database's local folders go there, not into the repository)."""
     cmd = [*(prefix or []), sys.executable, "-m", "tests.lsl_procs", kind, *args]
-    return subprocess.Popen(cmd, cwd=ROOT, env=env_with(config), **popen)  # type: ignore[call-overload]
+    env = env_with(config)
+    return subprocess.Popen(cmd, cwd=config.parent, env=env, **popen)  # type: ignore[call-overload]
 
 
 # ---------------------------------------------------------------------- the processes

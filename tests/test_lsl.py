@@ -174,7 +174,7 @@ def test_a_required_stream_missing_is_one_line_and_nothing_starts(tmp_path, lsl_
     db = tmp_path / "s.db"
     cmd = [sys.executable, "-m", "study.cli", "run", "--protocol", str(protocol),
            "--participant", "P01", "--db", str(db), "--input", "synthetic"]  # fmt: skip
-    done = subprocess.run(cmd, cwd=lsl_procs.ROOT, env=lsl_procs.env_with(lsl_cfg),
+    done = subprocess.run(cmd, cwd=tmp_path, env=lsl_procs.env_with(lsl_cfg),
                           capture_output=True, text=True, timeout=120)  # fmt: skip
     assert done.returncode == 2, done.stderr
     lines = done.stderr.strip().splitlines()
@@ -230,7 +230,7 @@ def test_lsl_without_pylsl_is_one_line_saying_how_to_get_it(tmp_path):
         f"main(['run', '--protocol', {str(protocol)!r}, '--participant', 'P01', "
         f"'--db', {str(db)!r}, '--lsl'])"
     )
-    done = subprocess.run([sys.executable, "-c", code], cwd=lsl_procs.ROOT, capture_output=True,
+    done = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True,
                           text=True, timeout=120)  # fmt: skip
     err = done.stderr
     assert done.returncode == 2 and len(err.strip().splitlines()) == 1, err
@@ -270,18 +270,18 @@ def test_only_study_lsl_imports_pylsl_and_only_when_used(tmp_path):
         "participant=ScriptedParticipant(np.random.default_rng(1)), record=False); "
         "print('pylsl' in sys.modules, 'pyxdf' in sys.modules)"
     )
-    done = subprocess.run([sys.executable, "-c", code], cwd=root, capture_output=True,
+    done = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True,
                           text=True, timeout=120, check=True)  # fmt: skip
     assert done.stdout.split() == ["False", "False"]
 
 
 @pytest.mark.slow
-def test_the_lsl_bench_group_reports_its_figures():
+def test_the_lsl_bench_group_reports_its_figures(tmp_path):
     """``asa bench --only lsl --quick`` (about 25 s: marked slow), in its own process: the
     bench loads liblsl with a configuration of its own."""
     done = subprocess.run(
         [sys.executable, "-m", "study.cli", "bench", "--only", "lsl", "--quick", "--json"],
-        cwd=lsl_procs.ROOT, capture_output=True, text=True, timeout=300, check=True,
+        cwd=tmp_path, capture_output=True, text=True, timeout=300, check=True,
     )  # fmt: skip
     figures = json.loads(done.stdout)
     assert figures["lsl_lost_samples"] == 0 and figures["lsl_recorded_samples"] > 1000
