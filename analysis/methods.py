@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import tomllib
 from dataclasses import dataclass
+from pathlib import PurePath
 from typing import Any
 
 import pandas as pd
@@ -156,6 +157,24 @@ DEVIATIONS: tuple[Deviation, ...] = (
         "components and clusters under 4 % of the points are merged into their nearest.",
     ),
     Deviation(
+        "Contextual mode: the component's kind and time",
+        ("contextual_task",),
+        'By default (recogniser = "kind_time") the contextual mode recognises the driver\'s '
+        "task from the semantic component's kind and over time, not per tick from the task "
+        "feature alone (Ch. 6): each candidate's SOGP scores (Eq. 5.6) are combined with the "
+        "share of each motion primitive's demonstrations performed on that kind of component, "
+        "the distances at which the primitive was executed rather than approached, and the "
+        "target's rank among the nearest components, all learnt from the unlabelled "
+        "demonstrations (the target component, and so its kind, is known without a task "
+        "label, Sec. 6.2.1; gaps and docks reach the primitives as doorway-like point "
+        "targets, Sec. 4.2.4), plus the progress along a passage's axis; the belief is "
+        "filtered with the Ch. 4 recogniser's sticky transition and Bayes update (Eq. 4.4, "
+        "4.14) with a no-task hypothesis, and the blend weight is the winner's posterior only "
+        "when it is decisive (else 0), withdrawn when the driver pushes against the "
+        "assistance. The thesis's recogniser (Eq. 5.8 per tick, beta of Eq. 5.10) is the "
+        'setting recogniser = "thesis"; the Methods name the one a study ran.',
+    ),
+    Deviation(
         "Contextual mode: task labels",
         ("contextual_task",),
         "A recognised primitive is reported as the contextual task it performs on the "
@@ -266,26 +285,55 @@ def _procedure(protocol: dict[str, Any]) -> str:
     return f"Each session consisted of {'; '.join(steps)}.{tail}"
 
 
-def _stored_settings(data: StudyData, mode: str) -> dict[str, Any] | None:
+def _stored_outcome(data: StudyData, mode: str) -> dict[str, Any] | None:
+    """The outcome of the first trial of ``mode`` that stored its mode settings."""
     trials = data.tables.get("trial", pd.DataFrame())
     if trials.empty or "outcome" not in trials:
         return None
     for mode_, outcome in zip(trials["mode"], trials["outcome"], strict=True):
         if mode_ == mode and isinstance(outcome, dict) and "mode_settings" in outcome:
-            return dict(outcome["mode_settings"])
+            return outcome
     return None
 
 
+THESIS_RECOGNISER = "thesis (Ch. 6)"  # what a study stored before the setting existed ran
+
+
+def _model_text(settings: dict[str, Any], outcome: dict[str, Any] | None) -> str:
+    """The model a mode read, by file name and SHA-256 (issue 40), and the recogniser the
+    mode ran; "" for a mode without a model. The absolute path is the machine's, not the
+    study's, and is never printed."""
+    path = settings.get("model_path")
+    if not isinstance(path, str):
+        return ""
+    if not path:
+        return "no model (manual behaviour)"
+    stored = (outcome or {}).get("model")
+    if isinstance(stored, dict) and stored.get("sha256"):
+        name = f"model {stored.get('file', '?')} (SHA-256 {stored['sha256']})"
+    else:
+        name = f"model {PurePath(path).name} (SHA-256 not stored with this study's trials)"
+    recogniser = settings.get("recogniser")
+    which = THESIS_RECOGNISER if recogniser is None else str(recogniser)
+    return f"{name}, recogniser {which}"
+
+
 def _mode_text(mode: str, data: StudyData, protocol: dict[str, Any]) -> str:
-    stored = _stored_settings(data, mode)
+    outcome = _stored_outcome(data, mode)
+    stored = dict(outcome["mode_settings"]) if outcome is not None else None
     given = ((protocol.get("modes") or {}).get("settings") or {}).get(mode) or {}
     settings = stored if stored is not None else given
-    shown = {k: v for k, v in sorted(settings.items()) if not isinstance(v, dict | list)}
-    if not shown:
+    model = _model_text(settings, outcome)
+    shown = {
+        k: v
+        for k, v in sorted(settings.items())
+        if not isinstance(v, dict | list) and k not in ("model_path", "recogniser")
+    }
+    if not shown and not model:
         where = "the platform's defaults (not stored with trials of this version)"
         return f"{mode}: {where}" if stored is None else f"{mode}: no settings"
     source = "as stored with its trials" if stored is not None else "as the protocol sets them"
-    values = ", ".join(f"{k} = {v}" for k, v in shown.items())
+    values = ", ".join([model] * bool(model) + [f"{k} = {v}" for k, v in shown.items()])
     return f"{mode} ({source}): {values}"
 
 

@@ -36,7 +36,7 @@ from analysis.presentation import (
     without_constant_levels,
 )
 from analysis.r_script import analysis_r
-from analysis.recognition import describe, html_rows, recognition_tables
+from analysis.recognition import DECILE_LABELS, describe, html_rows, recognition_tables
 from analysis.stats import analyse
 from analysis.tables import apa_anova, format_p
 
@@ -379,14 +379,15 @@ def _recognition(
     written: _Written,
     only: tuple[str, ...] | None,
 ) -> dict | None:
-    """The recognition in the loop per mode (:func:`analysis.recognition.describe`), its two
-    CSV tables written; None when the report is limited to metrics without it."""
+    """The recognition in the loop per mode (:func:`analysis.recognition.describe`), its
+    three CSV tables written; None when the report is limited to metrics without it."""
     if only is not None and not any(BY_NAME[m].group == "recognition" for m in only):
         return None
     described = describe(frames)
-    per_mode, per_task = recognition_tables(described)
+    per_mode, per_task, per_decile = recognition_tables(described)
     written.csv(per_mode, tables / "recognition.csv")
     written.csv(per_task, tables / "recognition_per_task.csv")
+    written.csv(per_decile, tables / "recognition_deciles.csv")
     for mode, d in described.items():
         say(
             f"recognition in the loop, {mode}: task match {d['loop_task_match']:.3f}, "
@@ -566,6 +567,8 @@ def _render_html(
         skipped=skipped,
         extra=extra,
         recognition=None if recognition is None else html_rows(recognition),
+        decile_labels=DECILE_LABELS,
+        zip=zip,
         methods=section,
         crash=crash,
         lab=lab,

@@ -19,7 +19,7 @@ from autonomy._kernels import fma, py_hypot
 @njit(cache=True)
 def sogp_kernels(Z, ls, xs_t, xs2, sf2, K) -> None:
     """The SOGP kernel values (Eq. 5.7) of the rows of ``Z`` (m, d) against every cluster's
-    basis, as autonomy.contextual.Recogniser computed them with numpy: ``K[j, b, i] =
+    basis, as autonomy.sogp_recogniser.Recogniser computed them with numpy: ``K[j, b, i] =
     sf2[j] exp(-max(|xs[j, b]|^2 + |a|^2 - 2 xs[j, b].a, 0) / 2)``, ``a = Z[i] / ls[j]``;
     ``ls`` (c, d), ``xs_t`` (c, d, b) the basis / length scales transposed, ``xs2`` (c, b),
     ``sf2`` (c,), ``K`` (c, b, m) out. The products ``xs[j] @ a`` are BLAS's chains of
@@ -170,7 +170,7 @@ def argmax_finite(scores) -> tuple[int, int]:
 
 @njit(cache=True)
 def recognise(K, alpha, n_basis, Ct, sf2, noise, mean, work) -> tuple[int, int, float]:
-    """Eqs. (5.6), (5.8) and (5.9) of autonomy.contextual.Recogniser for m >= 2
+    """Eqs. (5.6), (5.8) and (5.9) of autonomy.sogp_recogniser.Recogniser for m >= 2
     candidates, as numpy computed them: the posterior means ``mean[j] = alpha[j] @ K[j]``
     (``K`` (c, b, m), ``alpha`` (c, b), ``mean`` (c, m) out, :func:`gemv_rows`), the
     winner (:func:`argmax_finite` of ``mean.T``) and its predictive variance

@@ -19,19 +19,22 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy.special import ndtr
 
 from autonomy import _kernels, _tick_kernels
 from autonomy.arbitration import blend
 from autonomy.dwa import DWASettings, dwa
+from autonomy.intent_prior import IntentPrior
+from autonomy.kind_time import KindTimeRecogniser, KindTimeSettings
 from autonomy.local_gmr import EM_MAX_ITER, EM_TOL, LocalGMR
 from autonomy.model import DEFAULT_MODEL, ContextualModel, load_model
 from autonomy.modes import register, settings_from
 from autonomy.safety import safe_command
-from autonomy.sogp_classifier import argmax_finite
+from autonomy.sogp_recogniser import Recogniser
 from autonomy.task_types import TASK_TYPES, contextual_task, primitive_motions
 from autonomy.tracking import TrackingSettings, track
 from autonomy.types import EMPTY_PATH, Assist, RobotModel, as_candidates
+
+RECOGNISERS = ("kind_time", "thesis", "oracle", "none")
 
 
 @dataclass(frozen=True, slots=True)
@@ -61,8 +64,19 @@ class ContextualSettings:
     # Eq. 3.8) if that gets further; False: always the user's command, scaled
     yield_planner: bool = True
     planner: DWASettings = field(default_factory=DWASettings)
+    # which recogniser drives the assistance: "kind_time" (issue 40: the component's kind
+    # and time, autonomy.kind_time), "thesis" (Ch. 6: Eq. 5.8 per tick, beta of Eq. 5.10),
+    # "oracle" (the synthetic participant's true task and target, blend weight 1: an
+    # ablation), "none" (recognition shown, never assisting: the safety layer alone)
+    recogniser: str = "kind_time"
+    kind_time: KindTimeSettings = field(default_factory=KindTimeSettings)
 
     def __post_init__(self) -> None:
+        if self.recogniser not in RECOGNISERS:
+            raise ValueError(
+                f"contextual_task setting recogniser: must be one of "
+                f"{', '.join(RECOGNISERS)}, got {self.recogniser!r}"
+            )
         if not isinstance(self.yield_planner, bool):
             raise ValueError(
                 "contextual_task setting yield_planner: must be true or false, got "
@@ -105,120 +119,6 @@ class ContextualSettings:
                 f"contextual_task setting model_path: must be a file path or '', got "
                 f"{self.model_path!r}"
             )
-
-
-# --------------------------------------------------------------------------- recognition
-
-
-class Recogniser:
-    """Eqs. (5.6), (5.8), (5.10) over candidates x clusters from the arrays of a fitted SOGP
-    classifier (``SOGPClassifier.to_dict()``; the GPs' ``Q`` is not needed).
-
-    Equivalent to :func:`autonomy.sogp_classifier.recognise`, but computes the predictive
-    variance only for the winning candidate and cluster. The clusters' basis vectors are
-    stacked at load time (zero-padded to the largest basis, padded rows with ``alpha = 0``
-    and zero rows and columns of ``C``, which add exact zeros), so one tick evaluates the
-    kernels of all clusters in one compiled loop (:func:`autonomy._tick_kernels.sogp_kernels`)
-    and the means, the winner and its variance in another
-    (:func:`autonomy._tick_kernels.recognise`, BLAS's summation orders written out); the
-    numpy arithmetic they replaced is kept for a single candidate.
-    """
-
-    def __init__(self, sogp: dict[str, Any]) -> None:
-        self.classes_ = np.asarray(sogp["classes"]).copy()
-        models = list(sogp["models"])
-        c = len(models)
-        b = max((len(gp["alpha"]) for gp in models), default=0)
-        d = int(np.asarray(models[0]["length_scales"]).size) if c else 0
-        self.ls_ = np.ones((c, 1, d))  # (c, 1, d) length scales
-        self.xs_ = np.zeros((c, b, d))  # (c, b, d) basis / length scales
-        self.xs2_ = np.zeros((c, b, 1))  # (c, b, 1) squared norms of xs_
-        self.alpha_ = np.zeros((c, 1, b))  # (c, 1, b)
-        self.C_ = []  # per cluster (b_j, b_j)
-        self.n_basis_ = []
-        self.sf2_ = np.zeros((c, 1, 1))
-        self.noise_ = np.zeros(c)
-        for j, gp in enumerate(models):
-            ls = np.asarray(gp["length_scales"], dtype=float)
-            xs = np.asarray(gp["basis"], dtype=float) / ls
-            n = len(xs)
-            self.ls_[j, 0] = ls
-            self.xs_[j, :n] = xs
-            self.xs2_[j, :n, 0] = (xs * xs).sum(axis=1)
-            self.alpha_[j, 0, :n] = np.asarray(gp["alpha"], dtype=float)
-            self.C_.append(np.asarray(gp["C"], dtype=float))
-            self.n_basis_.append(n)
-            self.sf2_[j] = float(gp["signal_var"])
-            self.noise_[j] = float(gp["noise_var"])
-        # the same as contiguous (c, d), (c, d, b), (c, b), (c,) arrays for the kernels
-        self.ls2_ = np.ascontiguousarray(self.ls_[:, 0, :])
-        self.xs_t_ = np.ascontiguousarray(self.xs_.transpose(0, 2, 1))  # (c, d, b)
-        self.xs2v_ = np.ascontiguousarray(self.xs2_[:, :, 0])
-        self.sf2v_ = np.ascontiguousarray(self.sf2_[:, 0, 0])
-        self.alphav_ = np.ascontiguousarray(self.alpha_[:, 0, :])  # (c, b)
-        self.n_basisv_ = np.array(self.n_basis_, dtype=np.int64)  # (c,)
-        self.Ct_ = np.zeros((c, b, b))  # (c, b, b) the C_ transposed, zero-padded
-        for j, cj in enumerate(self.C_):
-            self.Ct_[j, : len(cj), : len(cj)] = cj.T
-        self.work_ = np.empty((6, b))  # the winner's kernel column, C k, 4 lanes
-
-    def __call__(self, Z: np.ndarray) -> tuple[int, int, float, np.ndarray]:
-        """Recognise over the rows of ``Z`` (m, d), standardised encoded features.
-
-        Returns
-        -------
-        best_candidate : int
-            Row of ``Z`` with the largest finite posterior mean over all clusters (5.8);
-            -1 if no mean is finite.
-        best_cluster : int
-            Its cluster id (-1 if none).
-        beta : float
-            ``Phi(mu / sqrt(var))`` of the winner (5.10); 0 if none.
-        mean : numpy.ndarray
-            (m, c) posterior means (5.6).
-        """
-        Z = np.ascontiguousarray(np.atleast_2d(np.asarray(Z, dtype=float)))
-        if len(Z) > 1:
-            return self._many(Z)
-        if len(Z) == 1:  # BLAS computes xs @ a.T as a gemv here, in another order
-            a = Z / self.ls_  # (c, 1, d)
-            sq = self.xs2_ + (a * a).sum(axis=2)[:, None, :]
-            sq -= 2.0 * (self.xs_ @ a.transpose(0, 2, 1))  # (c, b, 1)
-            np.maximum(sq, 0.0, out=sq)
-            sq *= -0.5
-            K = np.exp(sq, out=sq)
-            K *= self.sf2_  # Eq. (5.7)
-        else:
-            K = np.empty((len(self.n_basis_), self.xs_.shape[1], 0))
-        mean = (self.alpha_ @ K)[:, 0, :].T  # (m, c), Eq. (5.6)
-        i, j = argmax_finite(mean)  # Eq. (5.8), never a non-finite score
-        if i < 0:
-            return -1, -1, 0.0, mean
-        k = K[j, : self.n_basis_[j], i]
-        sf2 = float(self.sf2_[j, 0, 0])
-        var = max(sf2 + float(k @ (self.C_[j] @ k)), 0.0) + float(self.noise_[j])  # Eq. (5.9)
-        beta = float(ndtr(mean[i, j] / math.sqrt(var)))  # Eq. (5.10)
-        if not math.isfinite(beta):
-            beta = 0.0
-        return i, int(self.classes_[j]), beta, mean
-
-    def _many(self, Z: np.ndarray) -> tuple[int, int, float, np.ndarray]:
-        """:meth:`__call__` for ``Z`` (m, d) C-contiguous float64, m >= 2: the kernels
-        (:func:`autonomy._tick_kernels.sogp_kernels`, :func:`autonomy._tick_kernels.recognise`)
-        repeat the numpy arithmetic, BLAS's products included; ndtr is scipy's."""
-        c, b = self.alphav_.shape
-        K = np.empty((c, b, len(Z)))
-        _tick_kernels.sogp_kernels(Z, self.ls2_, self.xs_t_, self.xs2v_, self.sf2v_, K)
-        mean = np.empty((c, len(Z)))
-        i, j, var = _tick_kernels.recognise(
-            K, self.alphav_, self.n_basisv_, self.Ct_, self.sf2v_, self.noise_, mean, self.work_
-        )
-        if i < 0:
-            return -1, -1, 0.0, mean.T
-        beta = float(ndtr(mean[j, i] / math.sqrt(var)))  # Eq. (5.10)
-        if not math.isfinite(beta):
-            beta = 0.0
-        return i, int(self.classes_[j]), beta, mean.T
 
 
 # --------------------------------------------------------------------------- rollout
@@ -424,15 +324,31 @@ class ContextualTaskMode:
             if self.runtime_ is not None
             else {}
         )
+        self.intent_ = None
+        self.intention_ = ("", "")  # the oracle's: the participant's true (task, target)
+        if self.runtime_ is not None and self.settings.recogniser == "kind_time":
+            prior = IntentPrior.from_metadata(
+                self.runtime_.model.metadata, self.runtime_.recogniser.classes_
+            )
+            self.intent_ = KindTimeRecogniser(prior, self.settings.kind_time)
 
     def reset(self, robot: RobotModel) -> None:
         self.robot_ = robot
+        if self.intent_ is not None:
+            self.intent_.reset()
         # (3,) the limits that normalise a command (max speed twice, max yaw rate)
         self.limit_ = np.array([robot.max_speed, robot.max_speed, robot.max_yaw_rate])
 
     def settings_dict(self) -> dict[str, Any]:
         """The effective :class:`ContextualSettings`, tracking's nested."""
         return dataclasses.asdict(self.settings)
+
+    def needs_intention(self) -> bool:
+        """The oracle (``recogniser = "oracle"``) is driven by the true intention."""
+        return self.settings.recogniser == "oracle"
+
+    def observe_intention(self, task: str, target: str) -> None:
+        self.intention_ = (str(task), str(target))
 
     def label_tasks(self) -> dict[str, str]:
         """The mode's labels are contextual task types (:mod:`autonomy.task_types`): each
@@ -509,6 +425,8 @@ class ContextualTaskMode:
         u_norm = u / self.limit_
         nx, ny, _ = u_norm.tolist()
         if rt is None or not len(components) or math.hypot(nx, ny) < s.min_input:
+            if self.intent_ is not None:
+                self.intent_.idle()
             return self._manual(u, points, start, time.perf_counter())
 
         # 1. candidates: the nearest components by target point
@@ -519,14 +437,24 @@ class ContextualTaskMode:
         chosen, Z = np.empty(n, dtype=np.int64), np.empty((n, 7))
         scaler = rt.model.scaler
         _tick_kernels.candidate_features(targets, n, u_norm, scaler.mean_, scaler.scale_, Z, chosen)
-        # 3. recognition, Eqs. (5.6), (5.8), (5.10)
+        # 3. recognition, Eqs. (5.6), (5.8), (5.10); with kind and time (autonomy.kind_time)
         i, cluster, beta, mean = rt.recogniser(Z)
+        ids = _ids(components, chosen)
+        if self.intent_ is not None and i >= 0:
+            i, cluster, beta = self._kind_time(components, chosen, ids, targets, mean, u_norm)
+        elif s.recogniser == "oracle":
+            i, cluster, beta = self._oracle(components, chosen, ids, mean)
+        elif s.recogniser == "none":
+            beta = 0.0
         t_rec = time.perf_counter()
         if i < 0:  # no finite score: nothing recognised
             return self._manual(u, points, start, t_rec)
         component = components[int(chosen[i])]
-        # 4. rollout, Alg. 3
-        path, _ = rollout(rt, cluster, component, robot, s)
+        # 4. rollout, Alg. 3 (not while the kind-and-time recogniser withholds assistance)
+        if beta > 0.0 or s.recogniser in ("thesis", "none"):
+            path, _ = rollout(rt, cluster, component, robot, s)
+        else:
+            path = EMPTY_PATH
         t_roll = time.perf_counter()
         # 5. tracking controller -> g
         if len(path):
@@ -539,13 +467,18 @@ class ContextualTaskMode:
             )
         else:
             g = u.copy()
+        if s.recogniser in ("kind_time", "oracle") and beta > 0.0 and g[0] * u[0] + g[1] * u[1] < 0:
+            # the driver pushes against the assistance: it gives way (and believes less)
+            if self.intent_ is not None:
+                self.intent_.contradict(ids[i])
+            beta = 0.0
         # 6. blend (3.2) and the safety layer
         v = blend(u, g, beta)  # Eq. (3.2)
         t_track = time.perf_counter()
         v, beta = self._safe(v, u, beta, points, obs.velocity)
         end = time.perf_counter()
         best = mean.max(axis=1)
-        scores = dict(zip(_ids(components, chosen), best.tolist(), strict=True))
+        scores = dict(zip(ids, best.tolist(), strict=True))
         return Assist(
             v=v,
             g=g,
@@ -563,6 +496,41 @@ class ContextualTaskMode:
             },
         )
 
+    def _kind_time(
+        self,
+        components: Any,
+        chosen: np.ndarray,
+        ids: list[str],
+        targets: np.ndarray,
+        mean: np.ndarray,
+        u_norm: np.ndarray,
+    ) -> tuple[int, int, float]:
+        """The kind-and-time recogniser's candidate (row of ``chosen``), cluster id and
+        blend weight; ``mean`` (n, c) the SOGP means of the ``chosen`` candidates."""
+        picked = [components[int(k)] for k in chosen.tolist()]
+        kinds = [str(c.kind) for c in picked]
+        normals = np.array([np.asarray(c.normal, dtype=float).reshape(2) for c in picked])
+        near = targets[chosen]
+        found = self.intent_(mean, ids, kinds, near, normals, u_norm)
+        classes = self.runtime_.recogniser.classes_
+        return found.candidate, int(classes[found.primitive]), found.beta
+
+    def _oracle(
+        self, components: Any, chosen: np.ndarray, ids: list[str], mean: np.ndarray
+    ) -> tuple[int, int, float]:
+        """The true target among the candidates (row of ``chosen``; -1 when the driver
+        does no task or the target is not among them), the best-scoring primitive whose
+        motion makes the true task on it (any primitive if none does), blend weight 1."""
+        task, target = self.intention_
+        if not task or target not in ids:
+            return -1, -1, 0.0
+        i = ids.index(target)
+        kind = str(components[int(chosen[i])].kind)
+        classes = self.runtime_.recogniser.classes_
+        fits = [contextual_task(kind, self.motions_.get(int(c), "")) == task for c in classes]
+        scores = np.where(fits, mean[i], -np.inf) if any(fits) else mean[i]
+        return i, int(classes[int(np.argmax(scores))]), 1.0
+
 
 @register("contextual_task")
 def make_contextual_task(**settings: Any) -> ContextualTaskMode:
@@ -570,3 +538,30 @@ def make_contextual_task(**settings: Any) -> ContextualTaskMode:
     return ContextualTaskMode(
         settings_from(ContextualSettings, settings, where="mode 'contextual_task'")
     )
+
+
+# the contextual mode with another recogniser under its own name, so that one protocol can
+# compare them (protocols/ablation.toml): registry name -> recogniser
+VARIANTS: dict[str, str] = {
+    "contextual_thesis": "thesis",
+    "contextual_oracle": "oracle",
+    "contextual_safety": "none",
+}
+
+
+def _variant(name: str, recogniser: str) -> None:
+    @register(name)
+    def make(**settings: Any) -> ContextualTaskMode:
+        where = f"mode {name!r}"
+        if "recogniser" in settings:
+            raise ValueError(f"{where}: setting 'recogniser' is fixed ({recogniser!r})")
+        values = {**settings, "recogniser": recogniser}
+        mode = ContextualTaskMode(settings_from(ContextualSettings, values, where=where))
+        mode.name = name
+        return mode
+
+    make.__doc__ = f"The contextual mode with ``recogniser = {recogniser!r}`` (an ablation)."
+
+
+for _name, _recogniser in VARIANTS.items():
+    _variant(_name, _recogniser)

@@ -160,7 +160,7 @@ def with_defaults(mode: Any) -> Mode:
 
 
 # the optional hooks of :class:`Mode` (those with a default)
-_HOOKS = ("label_tasks", "settings_dict")
+_HOOKS = ("label_tasks", "settings_dict", "needs_intention", "observe_intention")
 
 
 class _WithDefaults(Mode):

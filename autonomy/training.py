@@ -173,6 +173,7 @@ class DemoCandidates:
     offsets: np.ndarray  # (n + 1,) int
     ids: np.ndarray  # (m,) str
     target: np.ndarray  # (n,) str
+    kinds: np.ndarray | None = None  # (m,) str the candidates' component kinds
 
 
 def negative_features(
@@ -276,6 +277,7 @@ def train(
     source: str = "",
     run: np.ndarray | None = None,
     candidates: DemoCandidates | None = None,
+    executing: np.ndarray | None = None,
 ) -> ContextualModel:
     """Train a contextual-task model on unlabelled task features.
 
@@ -304,6 +306,10 @@ def train(
         The components around every row: the classifier learns the other components'
         features as hard negatives (:func:`negative_features`); without them it sees
         only the demonstrated targets.
+    executing : numpy.ndarray, optional
+        (n,) bool: the demonstrator was executing the task, not approaching it. With it
+        and the candidates' kinds the metadata gets the kind-and-time recogniser's prior
+        (:func:`autonomy.intent_prior.fit_intent_prior`, ``"intent_prior"``).
 
     Returns
     -------
@@ -333,6 +339,8 @@ def train(
     info["novelty_tol"] = tols
     info["way_points"] = int(len(wp))
     metadata = _metadata(q, labels, task, classifier, info, settings, seed=seed, source=source)
+    if candidates is not None and candidates.kinds is not None and executing is not None:
+        metadata["intent_prior"] = _intent_prior(q, labels, candidates, executing)
     return ContextualModel.with_classifier(
         classifier,
         scaler=scaler,
@@ -343,6 +351,28 @@ def train(
         gmr_offsets=offsets,
         metadata=metadata,
     )
+
+
+def _intent_prior(
+    q: np.ndarray, labels: np.ndarray, candidates: DemoCandidates, executing: np.ndarray
+) -> dict[str, Any]:
+    """:func:`autonomy.intent_prior.fit_intent_prior` of the demonstrated ticks: each
+    target's distance (``q[:, :2]``), kind and rank among the tick's components."""
+    from autonomy.intent_prior import fit_intent_prior
+
+    n = len(q)
+    kind, rank = np.full(n, "", dtype=object), np.full(n, -1, dtype=np.int64)
+    off = candidates.offsets
+    for i in range(n):
+        a, b = int(off[i]), int(off[i + 1])
+        hit = np.flatnonzero(candidates.ids[a:b] == candidates.target[i])
+        if len(hit):
+            d2 = np.einsum("ij,ij->i", candidates.points[a:b], candidates.points[a:b])
+            order = np.argsort(d2, kind="stable")
+            kind[i] = str(candidates.kinds[a + hit[0]])
+            rank[i] = int(np.flatnonzero(order == hit[0])[0])
+    distance = np.hypot(q[:, 0], q[:, 1])
+    return fit_intent_prior(labels, distance, np.asarray(executing, dtype=bool), kind, rank)
 
 
 def _metadata(

@@ -239,3 +239,15 @@ class Mode(Protocol):
         dataclass returns ``dataclasses.asdict`` of it (plain values; the trial loop makes
         them JSON-ready); {} (the default) for a mode without settings."""
         return {}
+
+    def needs_intention(self) -> bool:
+        """Whether the mode is to be told the participant's true intention before every
+        step (:meth:`observe_intention`): an oracle, for ablations with synthetic
+        participants only. False (the default)."""
+        return False
+
+    def observe_intention(self, task: str, target: str) -> None:
+        """The participant's true contextual task type and target component id this tick
+        (``""`` while it does no task); called before :meth:`step` when
+        :meth:`needs_intention`. The default ignores it."""
+        return None

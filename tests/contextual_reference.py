@@ -1,7 +1,7 @@
 """The contextual mode's step as it was before its kernels (issue 25), kept verbatim as
 the oracle of tests/test_contextual_kernels.py: the fast online GMR with its pooled kNN and
 fit cache (autonomy.local_gmr.LocalGMR), the rollout (Alg. 3), the recogniser's call
-(a function of an autonomy.contextual.Recogniser) and the tracking controller."""
+(a function of an autonomy.sogp_recogniser.Recogniser) and the tracking controller."""
 
 from __future__ import annotations
 
@@ -269,6 +269,22 @@ def ref_rollout(
     return out, np.array(dists)
 
 
+def _ref_kernels(self: Recogniser, Z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The SOGP kernel values ``K`` (c, b, m) of Eq. (5.7) as numpy computed them, and
+    the magnitude of the squared distances' terms (c, b, m) (the scale of their rounding:
+    ``|xs|^2 + |a|^2 + 2 |xs| . |a|``)."""
+    Z = np.atleast_2d(np.asarray(Z, dtype=float))
+    a = Z / self.ls_  # (c, m, d)
+    sq = self.xs2_ + (a * a).sum(axis=2)[:, None, :]
+    terms = sq + 2.0 * (np.abs(self.xs_) @ np.abs(a).transpose(0, 2, 1))
+    sq -= 2.0 * (self.xs_ @ a.transpose(0, 2, 1))  # (c, b, m)
+    np.maximum(sq, 0.0, out=sq)
+    sq *= -0.5
+    K = np.exp(sq, out=sq)
+    K *= self.sf2_  # Eq. (5.7)
+    return K, terms
+
+
 def ref_recognise(self: Recogniser, Z: np.ndarray) -> tuple[int, int, float, np.ndarray]:
     """Recognise over the rows of ``Z`` (m, d), standardised encoded features.
 
@@ -284,14 +300,7 @@ def ref_recognise(self: Recogniser, Z: np.ndarray) -> tuple[int, int, float, np.
     mean : numpy.ndarray
         (m, c) posterior means (5.6).
     """
-    Z = np.atleast_2d(np.asarray(Z, dtype=float))
-    a = Z / self.ls_  # (c, m, d)
-    sq = self.xs2_ + (a * a).sum(axis=2)[:, None, :]
-    sq -= 2.0 * (self.xs_ @ a.transpose(0, 2, 1))  # (c, b, m)
-    np.maximum(sq, 0.0, out=sq)
-    sq *= -0.5
-    K = np.exp(sq, out=sq)
-    K *= self.sf2_  # Eq. (5.7)
+    K, _ = _ref_kernels(self, Z)
     mean = (self.alpha_ @ K)[:, 0, :].T  # (m, c), Eq. (5.6)
     i, j = argmax_finite(mean)  # Eq. (5.8), never a non-finite score
     if i < 0:
@@ -303,6 +312,68 @@ def ref_recognise(self: Recogniser, Z: np.ndarray) -> tuple[int, int, float, np.
     if not math.isfinite(beta):
         beta = 0.0
     return i, int(self.classes_[j]), beta, mean
+
+
+def recognition_tolerances(self: Recogniser, Z: np.ndarray) -> tuple[np.ndarray, float]:
+    """How far another summation order may move :func:`ref_recognise`'s means (m, c) and
+    blend weight (tests/fp.py). The kernel values carry the rounding of their squared
+    distances (relative to the terms' magnitude, amplified by ``exp``), the means that of
+    ``|alpha| . K``; the variance that of ``sf2 + |k|^T |C| |k| + noise`` (the SOGP's
+    variance cancels: ``k^T C k`` is close to ``-sf2`` near the basis); the blend weight
+    ``Phi(t)``, ``t = mean / sqrt(var)``, moves by ``phi(t) (d mean / sd + |t| d var /
+    (2 var))`` to first order. Each relative part is :data:`fp.PIPELINE_RTOL`."""
+    from fp import PIPELINE_RTOL, U
+
+    K, terms = _ref_kernels(self, Z)
+    with np.errstate(invalid="ignore", over="ignore"):
+        dK = K * (1.0 + terms)
+        mean_tol = PIPELINE_RTOL * (np.abs(self.alpha_) @ dK)[:, 0, :].T  # (m, c)
+    mean = (self.alpha_ @ K)[:, 0, :].T
+    i, j = argmax_finite(mean)
+    if i < 0:
+        return mean_tol, 0.0
+    k = np.abs(K[j, : self.n_basis_[j], i])
+    sf2, noise = float(self.sf2_[j, 0, 0]), float(self.noise_[j])
+    var_k = sf2 + float(k @ (self.C_[j] @ K[j, : self.n_basis_[j], i]))
+    var = max(var_k, 0.0) + noise
+    var_tol = PIPELINE_RTOL * (sf2 + float(k @ (np.abs(self.C_[j]) @ k)) + noise)
+    sd = math.sqrt(var)
+    t = mean[i, j] / sd
+    density = math.exp(-0.5 * t * t) / math.sqrt(2.0 * math.pi)
+    beta_tol = density * (mean_tol[i, j] / sd + abs(t) * var_tol / (2.0 * var)) + 8 * U
+    return mean_tol, beta_tol
+
+
+def assert_recognition_close(self: Recogniser, Z: np.ndarray, got, *, name: str) -> bool:
+    """``got`` (the recogniser's ``(i, cluster, beta, mean)`` on ``Z``) equals
+    :func:`ref_recognise` within :func:`recognition_tolerances`
+    (:func:`assert_recognitions_match`). Returns False at a near-tie."""
+    mean_tol, beta_tol = recognition_tolerances(self, Z)
+    return assert_recognitions_match(
+        got, ref_recognise(self, Z), mean_tol, beta_tol, self.classes_, name=name
+    )
+
+
+def assert_recognitions_match(got, ref, mean_tol, beta_tol, classes, *, name: str) -> bool:
+    """Two recognitions ``(i, cluster, beta, mean)`` agree: the means (m, c) within
+    ``mean_tol``, the winner the same unless another mean is tied with the reference's
+    within the tolerances (then any of the tied), the blend weight within ``beta_tol``.
+    Returns False at such a tie (the rest of a tick is then not comparable)."""
+    from fp import assert_close, near_best
+
+    assert_close(got[3], ref[3], mean_tol, name=f"{name}.mean")
+    if ref[0] < 0:
+        assert tuple(got[:3]) == tuple(ref[:3])
+        return True
+    tied = near_best(ref[3], mean_tol)
+    if tied.sum() > 1:
+        rows, cols = np.nonzero(tied)
+        allowed = {(int(r), int(classes[c])) for r, c in zip(rows, cols, strict=True)}
+        assert (got[0], got[1]) in allowed, f"{name}: winner {got[:2]} not among {allowed}"
+        return False
+    assert tuple(got[:2]) == tuple(ref[:2]), f"{name}: winner {got[:2]} != {ref[:2]}"
+    assert_close(got[2], ref[2], beta_tol, name=f"{name}.beta")
+    return True
 
 
 def ref_track(

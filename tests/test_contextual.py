@@ -48,7 +48,8 @@ def model():
 
 @pytest.fixture(scope="module")
 def mode(model):
-    m = ContextualTaskMode(ContextualSettings(model_path=""), model=model)
+    """The thesis's recogniser (Ch. 6, one tick decides): the pipeline's tests."""
+    m = ContextualTaskMode(ContextualSettings(model_path="", recogniser="thesis"), model=model)
     m.reset(ROBOT)
     return m
 
@@ -78,14 +79,19 @@ def empty_observation(components):
     return synthetic_observation(far, components=tuple(components))
 
 
-def test_recognises_the_doorway_the_input_heads_to(mode):
+@pytest.mark.parametrize("recogniser", ["thesis", "kind_time"])
+def test_recognises_the_doorway_the_input_heads_to(model, recogniser):
+    mode = ContextualTaskMode(ContextualSettings(model_path="", recogniser=recogniser), model=model)
+    mode.reset(ROBOT)
     ahead = doorway("door_ahead", (1.3, 0.3))
     others = [doorway("door_right", (2.0, -1.5)), doorway("door_left", (1.2, 2.6))]
     obs = empty_observation([*others, ahead, wall("wall", -3.0)])
     # the synthetic demonstrators' doorway pattern: drive at it, turning towards it
     bearing = math.atan2(ahead.centre[1], ahead.centre[0])
     u = np.array([0.5 * math.cos(bearing), 0.5 * math.sin(bearing), 1.5 * bearing])
-    assist = mode.step(obs, u * np.array([1.0, 1.0, ROBOT.max_yaw_rate]))
+    # the thesis's recogniser decides on one tick; the kind-and-time one over a few
+    for _ in range(1 if recogniser == "thesis" else 15):
+        assist = mode.step(obs, u * np.array([1.0, 1.0, ROBOT.max_yaw_rate]))
     assert assist.target == ahead.id
     assert assist.scores[ahead.id] == max(assist.scores.values())
     assert assist.label == "doorway_crossing" and assist.beta > 0.5

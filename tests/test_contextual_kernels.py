@@ -1,9 +1,11 @@
-"""The compiled contextual step (autonomy._kernels, issue 25) gives bit for bit what the
-numpy/Python code before it gave (tests/contextual_reference.py, kept verbatim): the local
-EM fit, the pooled kNN and the fit cache of the fast online GMR, the rollout (Alg. 3), the
-recogniser, the candidates' features and the tracking controller, on seeded random
-inputs and on ticks recorded from a synthetic trial (tests/golden/contextual_ticks.npz,
-made by tests/golden/make_contextual_ticks.py)."""
+"""The compiled contextual step (autonomy._kernels, issue 25) gives what the numpy/Python
+code before it gave (tests/contextual_reference.py, kept verbatim): the local EM fit, the
+pooled kNN and the fit cache of the fast online GMR, the rollout (Alg. 3), the recogniser,
+the candidates' features and the tracking controller, on seeded random inputs and on ticks
+recorded from a synthetic trial (tests/golden/contextual_ticks.npz, made by
+tests/golden/make_contextual_ticks.py). Values agree within the rounding of another
+summation order (tests/fp.py; bit for bit where OpenBLAS runs its Haswell kernels, whose
+order the kernels repeat), decisions exactly unless taken at a near-tie."""
 
 from __future__ import annotations
 
@@ -29,10 +31,11 @@ sys.path.insert(0, str(Path(__file__).parent))
 from contextual_reference import (  # noqa: E402
     RefLocalGMR,
     _nearest_candidates,
-    ref_recognise,
+    assert_recognition_close,
     ref_rollout,
     ref_track,
 )
+from fp import PIPELINE_RTOL, assert_pipeline_close  # noqa: E402
 
 TICKS = Path(__file__).parent / "golden" / "contextual_ticks.npz"
 ROBOT = RobotModel(
@@ -88,7 +91,9 @@ def test_em_fit_equals_the_python_fit(rng, k):
         ncomp, n_iter_k = _kernels.fit(phi, floor, tol, max_iter, lw, mu, var)
         assert (ncomp, n_iter_k) == (len(params), n_iter)
         for c, (log_w, m, v, _) in enumerate(params):
-            assert lw[c] == log_w and mu[c].tolist() == list(m) and var[c].tolist() == list(v)
+            assert_pipeline_close(lw[c], log_w, name="em.log_w")
+            assert_pipeline_close(mu[c], m, name="em.mu")
+            assert_pipeline_close(var[c], v, name="em.var")
 
 
 @pytest.mark.parametrize("k", [1, 3, 10, 40])
@@ -105,7 +110,7 @@ def test_local_gmr_equals_the_python_gmr(rng, k):
         x = x + rng.normal(scale=0.02 if draw < 0.9 else 1.5, size=2)
         sx, sy = float(x[0]), float(x[1])
         assert new._key(sx, sy) == old._key(sx, sy)
-        assert new.predict_xy(sx, sy) == old.predict_xy(sx, sy)
+        assert_pipeline_close(new.predict_xy(sx, sy), old.predict_xy(sx, sy), name="gmr")
         assert len(new.cache_) == len(old.cache_)
     assert new.n_iter_counts_.tolist() == old.n_iter_counts_
 
@@ -171,19 +176,34 @@ def _check_tick(mode, ref_runtime, components, u):
     """Candidates, recognition, rollout and tracking of one tick, kernels vs reference."""
     chosen, z = _features_new(mode, components, u)
     chosen_ref, z_ref = _features_ref(mode, components, u)
-    assert np.array_equal(chosen, chosen_ref) and np.array_equal(z, z_ref)
-    i, cluster, beta, mean = mode.runtime_.recogniser(z)
-    assert (i, cluster, beta) == ref_recognise(mode.runtime_.recogniser, z)[:3]
-    assert np.array_equal(mean, ref_recognise(mode.runtime_.recogniser, z)[3])
+    assert np.array_equal(chosen, chosen_ref)
+    assert_pipeline_close(z, z_ref, name="features")
+    got = mode.runtime_.recogniser(z)
+    if not assert_recognition_close(mode.runtime_.recogniser, z, got, name="tick"):
+        return  # a near-tie: the two winners' rollouts are not comparable
+    i, cluster = got[:2]
     if i < 0:
         return
     component, s = components[int(chosen[i])], mode.settings
     path, dists = rollout(mode.runtime_, cluster, component, ROBOT, s)
     path_ref, dists_ref = ref_rollout(ref_runtime, cluster, component, ROBOT, s)
-    assert np.array_equal(path, path_ref) and np.array_equal(dists, dists_ref)
+    _assert_rollouts_close(path, dists, path_ref, dists_ref, s.mahalanobis_stop)
     if len(path):
         kw = {"max_speed": 0.6, "max_yaw_rate": 1.2, "settings": s.tracking}
-        assert np.array_equal(track(path, s.dt, **kw), ref_track(path, s.dt, **kw))
+        assert_pipeline_close(track(path, s.dt, **kw), ref_track(path, s.dt, **kw), name="track")
+
+
+def _assert_rollouts_close(path, dists, path_ref, dists_ref, stop) -> None:
+    """Rollouts within :data:`fp.PIPELINE_RTOL`; of unequal length only where the shorter
+    one stopped on a Mahalanobis distance within the tolerance of the threshold (Eq. 6.3),
+    the common steps close."""
+    k = min(len(dists), len(dists_ref))
+    assert_pipeline_close(dists[:k], dists_ref[:k], name="rollout.dists")
+    assert_pipeline_close(path[: k - 1], path_ref[: k - 1], name="rollout.path")
+    if len(dists) != len(dists_ref):
+        assert abs(dists_ref[k - 1] - stop) <= PIPELINE_RTOL * max(stop, 1.0)
+    else:
+        assert_pipeline_close(path, path_ref, name="rollout.path")
 
 
 def test_ticks_on_random_scenes_equal_the_reference(rng, mode):
@@ -219,8 +239,7 @@ def test_recogniser_equals_the_reference_on_random_features(rng, mode):
     recogniser = mode.runtime_.recogniser
     for _ in range(40):
         z = rng.normal(size=(int(rng.integers(1, 12)), 7)) * rng.uniform(0.1, 3.0)
-        got, ref = recogniser(z), ref_recognise(recogniser, z)
-        assert got[:3] == ref[:3] and np.array_equal(got[3], ref[3])
+        assert_recognition_close(recogniser, z, recogniser(z), name="recogniser_random")
 
 
 def test_candidates_with_ties_and_zero_input(mode):
@@ -233,7 +252,8 @@ def test_candidates_with_ties_and_zero_input(mode):
             components = as_candidates(items[:n])
             got = _features_new(mode, components, u)
             ref = _features_ref(mode, components, u)
-            assert np.array_equal(got[0], ref[0]) and np.array_equal(got[1], ref[1])
+            assert np.array_equal(got[0], ref[0])  # ties broken by order, exactly
+            assert_pipeline_close(got[1], ref[1], name="features_ties")
 
 
 # --------------------------------------------------------------------------- tracking
@@ -260,7 +280,7 @@ def test_track_equals_the_numpy_controller(rng):
         )
         kw = {"max_speed": 0.6, "max_yaw_rate": float(rng.choice([0.3, 1.2])), "settings": settings}
         dt = float(rng.choice([0.05, 0.1]))
-        assert np.array_equal(track(path, dt, **kw), ref_track(path, dt, **kw))
+        assert_pipeline_close(track(path, dt, **kw), ref_track(path, dt, **kw), name="track")
     assert np.array_equal(
         track(np.empty((0, 3)), 0.05, max_speed=0.6, max_yaw_rate=1.2), np.zeros(3)
     )

@@ -318,7 +318,7 @@ def test_hard_negatives_are_other_candidates_of_the_same_tick(rng):
     assert np.all(np.bincount(tick_of[rows]) <= per_tick)
 
 
-def test_cache_records_once_and_checks_the_hash(recorded, tmp_path, monkeypatch):
+def test_cache_records_once_and_reports_another_hash(recorded, tmp_path, monkeypatch):
     from autonomy.training import data_sha256
     from study.jobs.demonstrations import load_demonstrations
     from study.jobs.evaluation import cache_root, cached_demonstrations
@@ -326,17 +326,22 @@ def test_cache_records_once_and_checks_the_hash(recorded, tmp_path, monkeypatch)
     monkeypatch.setenv("ASA_CACHE", str(tmp_path / "cache"))
     assert cache_root() == tmp_path / "cache"
     sha = data_sha256(load_demonstrations(recorded).q)  # the fixture: 1 run per task, seed 4
-    folder, fresh = cached_demonstrations(sha, runs=1, seed=4)
-    assert fresh and folder == tmp_path / "cache" / sha[:16]
+    folder, fresh, mismatch = cached_demonstrations(sha, runs=1, seed=4)
+    assert fresh and mismatch is None and folder == tmp_path / "cache" / sha[:16]
     assert [p.name for p in (tmp_path / "cache").iterdir()] == [sha[:16]]  # no leftovers
-    again, fresh_again = cached_demonstrations(sha, runs=1, seed=4)
-    assert again == folder and not fresh_again  # served from the cache
-    with pytest.raises(ValueError, match="pass the demonstrations folder"):
-        cached_demonstrations("0" * 64, runs=1, seed=4, where="m.npz")
-    assert not (tmp_path / "cache" / ("0" * 16)).exists()
-    with pytest.raises(ValueError, match=r"cached in .* pass the demonstrations folder"):
-        (folder.parent / ("1" * 16)).symlink_to(folder)  # a cache that holds other data
-        cached_demonstrations("1" * 64, where="m.npz")
+    again, fresh_again, mismatch = cached_demonstrations(sha, runs=1, seed=4)
+    assert again == folder and not fresh_again and mismatch is None  # from the cache
+    # a model made on a CPU that rounds otherwise: recorded, kept, used, and reported
+    other, fresh, mismatch = cached_demonstrations("0" * 64, runs=1, seed=4, where="m.npz")
+    assert fresh and other == tmp_path / "cache" / ("0" * 16)
+    assert (mismatch.got, mismatch.expected, mismatch.recorded) == (sha, "0" * 64, True)
+    line = mismatch.text(flags=True)
+    assert "m.npz" in line and sha[:16] in line and "0" * 16 in line and "--runs 1" in line
+    _, fresh, mismatch = cached_demonstrations("0" * 64, runs=1, seed=4, where="m.npz")
+    assert not fresh and mismatch.got == sha  # not recorded again
+    (folder.parent / ("1" * 16)).symlink_to(folder)  # a cache that holds other data
+    _, fresh, mismatch = cached_demonstrations("1" * 64, where="m.npz")
+    assert not fresh and "cached in" in mismatch.text()
     monkeypatch.delenv("ASA_CACHE")
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
     assert cache_root() == tmp_path / "xdg" / "asa-study"

@@ -68,6 +68,46 @@ def test_stored_mode_settings_are_reported(study_db, tmp_path):
     assert "manual: the platform's defaults" in modes["Assistance modes"]
 
 
+@pytest.mark.parametrize(
+    ("recogniser", "model", "named"),
+    [
+        (None, True, "recogniser thesis (Ch. 6)"),  # a study from before the setting
+        ("kind_time", True, "recogniser kind_time"),
+        ("thesis", False, "recogniser thesis"),
+    ],
+)
+def test_the_model_is_named_by_file_and_sha256_never_by_path(
+    study_db, tmp_path, recogniser, model, named
+):
+    copy = tmp_path / "copy.db"
+    copy.write_bytes(study_db.read_bytes())
+    settings = {"model_path": "/home/someone/lab-machine/models/default.npz", "candidates": 10}
+    if recogniser is not None:
+        settings["recogniser"] = recogniser
+    digest = "0123456789abcdef" * 4
+    with sqlite3.connect(copy) as con:
+        con.execute(
+            "UPDATE trial SET outcome = json_set(outcome, '$.mode_settings', json(?)) "
+            "WHERE mode = 'contextual_task'",
+            (json.dumps(settings),),
+        )
+        if model:
+            con.execute(
+                "UPDATE trial SET outcome = json_set(outcome, '$.model', json(?)) "
+                "WHERE mode = 'contextual_task'",
+                (json.dumps({"file": "default.npz", "sha256": digest}),),
+            )
+    data = load_study(copy)
+    text = {p["title"]: p["text"] for p in methods(data, tidy(data))["paragraphs"]}
+    modes = text["Assistance modes"]
+    assert "/home/someone" not in modes and "lab-machine" not in modes
+    if model:
+        assert f"model default.npz (SHA-256 {digest})" in modes
+    else:
+        assert "model default.npz (SHA-256 not stored" in modes
+    assert f"{named}, candidates = 10" in modes
+
+
 def test_report_has_the_section_and_methods_md(study_db, tmp_path):
     # the section is built from the stored study whatever the metrics: one metric keeps the
     # report at ~2 s instead of ~15 s (test_report.py builds the report of every metric)

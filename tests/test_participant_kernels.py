@@ -1,8 +1,8 @@
 """Issue 25: the synthetic participant's act, restructured (scalar arithmetic, compiled
 kernels), does exactly what it did: the obstacle guard, the driver's path progress, the
 nearest-component test and the drift draws against their numpy formulations bit for bit,
-and a closed-loop trial's commands against the ones recorded before the change
-(tests/golden/make_synthetic_commands.py)."""
+and a closed-loop trial's commands against the ones recorded before the change, made
+on another machine, within a stated tolerance (tests/golden/make_synthetic_commands.py)."""
 
 from __future__ import annotations
 
@@ -98,10 +98,21 @@ def test_drift_draws_equal_numpys_normal(seed):
         assert a.bit_generator.state == b.bit_generator.state
 
 
+# The golden rows were made on another machine. The loop's arithmetic (pybullet, the
+# participant's scalar code) does not go through BLAS, but numpy's transcendental ufuncs
+# pick SIMD paths by CPU and may round an ulp apart; a closed loop carries such a
+# difference on. 1e-9 of a command (|u| <= 1.2) is some 10^7 ulps of growth over the
+# trial, far below any change of behaviour (a changed rule moves commands by >= 1e-3),
+# and every answer, intention label and random draw must still be the same.
+COMMAND_ATOL = 1e-9
+
+
 def test_closed_loop_commands_equal_the_recorded_ones():
     want = json.loads(golden.PATH.read_text())
     got = golden.run()
     for k, (g, w) in enumerate(zip(got["rows"], want["rows"], strict=True)):
-        assert g == w, f"tick {k}: {g} != {w}"
+        u_got, u_want = (np.array([float.fromhex(x) for x in r[0]]) for r in (g, w))
+        assert np.all(np.abs(u_got - u_want) <= COMMAND_ATOL), f"tick {k}: {g} != {w}"
+        assert g[1:] == w[1:], f"tick {k}: {g} != {w}"
     assert got["streams"] == want["streams"]
-    assert got["mismatch"] == want["mismatch"]
+    assert abs(got["mismatch"] - want["mismatch"]) <= 1e-9 * abs(want["mismatch"])

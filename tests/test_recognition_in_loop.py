@@ -3,6 +3,9 @@ task a primitive performs on a component, and the trial outcome that carries bot
 
 from __future__ import annotations
 
+import hashlib
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -10,6 +13,7 @@ from autonomy.task_types import KIND_TASK, MOTION_TASK, TASK_TYPES, contextual_t
 from study.engine.recognition import RecognitionTally
 from tasks.contextual import TARGET_KIND
 from tasks.contextual import TASK_TYPES as ALL_TASKS
+from tests.cli_helpers import asa
 
 
 def test_every_named_task_targets_the_kind_that_names_it():
@@ -62,12 +66,16 @@ def test_tally_counts_agree_with_a_direct_count(rng):
 def test_tally_survives_its_summary_and_merges_additively(rng):
     table = {"la": "a", "lb": "b"}
     rows = _random_rows(rng, 300)
-    whole = RecognitionTally(table).add_rows(rows)
+    whole = RecognitionTally(table).add_rows(rows).summary()
     halves = RecognitionTally(table).add_rows(rows[:120])
     halves.merge(
         RecognitionTally.from_summary(RecognitionTally(table).add_rows(rows[120:]).summary())
     )
-    assert halves.summary() == whole.summary()
+    merged = halves.summary()
+    # the deciles are per trial (here two trials against one): compared in test_tally_assist
+    assert {k: v for k, v in merged.items() if k != "deciles"} == {
+        k: v for k, v in whole.items() if k != "deciles"
+    }
 
 
 def test_an_empty_tally_has_no_shares():
@@ -88,6 +96,20 @@ def test_a_contextual_trial_with_a_synthetic_driver_stores_its_recognition(tmp_p
     assert set(rec["per_task"]) <= set(ALL_TASKS)
     assert 0.0 <= rec["loop_task_target_match"] <= rec["loop_task_match"] <= 1.0
     assert set(result.outcome["label_tasks"]) <= set(ALL_TASKS)
+    # the assistance measures of issue 40, scored on every tick of the trial
+    assist = rec["assist"]
+    assert assist["ticks"] == result.outcome["ticks"]
+    assert assist["seconds"] == pytest.approx(result.outcome["duration_s"], abs=1e-6)
+    assert sum(d["labelled_ticks"] for d in rec["deciles"]) == rec["labelled_ticks"]
+    assert rec["assist_coverage"] is not None and 0.0 <= rec["assist_coverage"] <= 1.0
+    if assist["assist_all_ticks"]:
+        assert 0.0 <= rec["assist_precision"] <= 1.0
+    assert 0.0 <= rec["confident_wrong_longest_s"] <= rec["confident_wrong_s"]
+    assert rec["confident_wrong_s_per_min"] >= 0.0
+    # the model named by its file and content, not by the path on this machine
+    model = Path(result.outcome["mode_settings"]["model_path"])
+    digest = hashlib.sha256(model.read_bytes()).hexdigest()
+    assert result.outcome["model"] == {"file": model.name, "sha256": digest}
 
 
 def test_a_manual_trial_scores_no_recognition(tmp_path, rng):
@@ -118,3 +140,55 @@ def test_the_recognition_bench_pools_its_scenes_and_checks_the_aims():
     assert 0.0 <= figures["loop_task_target_match"] <= figures["loop_task_match"] <= 1.0
     budgets = check_budgets(figures, ["recognition"])
     assert {b["value"] for b in budgets.values()} >= {figures["loop_task_match"]}
+    # issue 40's aims: five budgets, the assistance figures pooled and per decile
+    assert set(budgets) == {
+        "loop_task_match",
+        "loop_task_target_match",
+        "assist_precision",
+        "assist_coverage",
+        "confident_wrong_s_per_min",
+    }
+    assert budgets["confident_wrong_s_per_min"]["op"] == "<="
+    assert 0.0 <= figures["assist_coverage"] <= 1.0
+    assert figures["confident_wrong_s_per_min"] >= 0.0
+    assert len(figures["loop_deciles"]) == 10
+    assert sum(d["labelled_ticks"] for d in figures["loop_deciles"]) == total
+    assert "recognition_compare" not in figures
+
+
+def test_the_recognition_bench_measures_other_settings_beside_the_default():
+    from study.bench.recognition import run
+
+    few = {"candidates": 2}  # a setting every contextual mode has; a recogniser's alike
+    figures = run(quick=True, scenes=["demo_docking"], generated=(), compare={"few": few})
+    both = figures["recognition_compare"]
+    assert set(both) == {"default", "few"}
+    assert both["default"]["loop_task_match"] == figures["loop_task_match"]
+    # the same drivers and scenes: the labelled ticks differ only by how the runs drove
+    assert both["few"]["labelled_ticks"] > 0
+    for run_ in both.values():
+        assert sum(d["labelled_ticks"] for d in run_["deciles"]) == run_["labelled_ticks"]
+    assert figures["recognition_scenes"] == ["demo_docking"]
+
+
+@pytest.mark.parametrize(
+    ("text", "seeds"),
+    [("20-29", tuple(range(20, 30))), ("0,3,5", (0, 3, 5)), ("0-2,7", (0, 1, 2, 7)), ("4", (4,))],
+)
+def test_generated_seeds_are_read_as_ranges_and_lists(text, seeds):
+    from study.cli.bench import parse_seeds
+
+    assert parse_seeds(text) == seeds
+
+
+@pytest.mark.parametrize("text", ["", "a", "3-1", "-2", "1-", "1,,2"])
+def test_bad_generated_seeds_are_refused_in_one_line(capsys, text):
+    code, out, err = asa(capsys, "bench", "--only", "recognition", f"--generated-seeds={text}")
+    assert code == 2 and out == ""
+    assert f"--generated-seeds: generated seeds {text!r}" in err
+    assert len(err.strip().splitlines()) == 1
+
+
+def test_recognition_options_without_the_recognition_group_are_refused(capsys):
+    code, _, err = asa(capsys, "bench", "--only", "sim", "--generated-seeds", "20-29")
+    assert code == 2 and "apply to group recognition" in err

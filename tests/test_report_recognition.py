@@ -24,6 +24,7 @@ import pandas as pd
 import pytest
 
 from analysis.data import load_study, tidy
+from analysis.data.assistance import assistance
 from analysis.data.recognition import COUNTS, recognition_counts, sample_counts
 from analysis.recognition import describe
 from analysis.report import build_report
@@ -172,6 +173,71 @@ def test_pooled_figures_equal_the_engine_tally_of_the_sample_table(real_db, real
     assert _counts(merged.summary()) == _counts(truth)
 
 
+def _assist_tallies(db: Path) -> dict[int, RecognitionTally]:
+    """Per contextual main trial: the engine's tally of its samples with their blend
+    weights, at the tick of the samples' simulated time."""
+    with sqlite3.connect(db) as con:
+        trials = con.execute(
+            "select id, outcome from trial where phase = 'main' and status = 'completed' "
+            "and mode = 'contextual_task'"
+        ).fetchall()
+        out = {}
+        for tid, outcome in trials:
+            rows = con.execute(
+                "select label, target, true_task, true_target, beta, t from sample "
+                "where trial_id = ? order by tick",
+                (tid,),
+            ).fetchall()
+            dt = rows[0][5]  # the first tick ends at t = dt
+            tally = RecognitionTally(json.loads(outcome)["label_tasks"], dt_s=dt)
+            out[tid] = tally.add_rows(r[:5] for r in rows)
+    return out
+
+
+def test_the_assistance_measures_equal_the_engine_tally_of_the_samples(real_db, real_report):
+    paths, out = real_report
+    d = json.loads(paths.results_json.read_text())["recognition"]["contextual_task"]
+    tallies = _assist_tallies(real_db)
+    pooled = RecognitionTally({})
+    for tally in tallies.values():
+        pooled.merge(tally)
+    truth = pooled.summary()
+    assert d["assist_trials"] == len(tallies) == 2
+    a = truth["assist"]
+    if a["assist_all_ticks"]:
+        assert d["assist_precision"] == pytest.approx(
+            a["assist_correct_ticks"] / a["assist_all_ticks"]
+        )
+    else:  # nothing assisted: undefined
+        assert d["assist_precision"] is None
+    assert d["assist_coverage"] == pytest.approx(
+        a["assist_covered_ticks"] / a["assist_labelled_ticks"]
+    )
+    assert d["assist_unlabelled_ticks"] == a["assist_unlabelled_ticks"]
+    # seconds: the tally sums the tick, the samples' times telescope (float rounding only)
+    assert d["confident_wrong_s_per_min"] == pytest.approx(
+        60 * a["confident_wrong_s"] / a["seconds"], abs=1e-6
+    )
+    assert d["confident_wrong_longest_s"] == pytest.approx(a["confident_wrong_longest_s"])
+    assert [c["labelled_ticks"] for c in d["deciles"]] == [
+        c["labelled_ticks"] for c in truth["deciles"]
+    ]
+    assert [c["task_target_matches"] for c in d["deciles"]] == [
+        c["task_target_matches"] for c in truth["deciles"]
+    ]
+    for task, c in d["per_task"].items():
+        assert c["assist_ticks"] == truth["per_task"][task]["assist_ticks"]
+        assert c["confident_wrong_ticks"] == truth["per_task"][task]["confident_wrong_ticks"]
+    # the tables carry them
+    per_mode = pd.read_csv(out / "tables" / "recognition.csv").iloc[0]
+    assert per_mode["assist_coverage"] == pytest.approx(d["assist_coverage"])
+    deciles = pd.read_csv(out / "tables" / "recognition_deciles.csv")
+    assert deciles["decile"].tolist() == list(range(1, 11))
+    assert deciles["labelled_ticks"].sum() == d["labelled_ticks"]
+    html = paths.html.read_text(encoding="utf-8")
+    assert "assist precision" in html and "per decile of each trial" in html
+
+
 def test_without_the_stored_recognition_the_samples_give_the_same_numbers(
     real_db, real_report, tmp_path
 ):
@@ -275,6 +341,48 @@ def test_sample_counts_equal_the_engine_tally_for_any_rows(rng):
         assert {t: _counts(c) for t, c in truth["per_task"].items()} == {
             t: {k: int(mine.loc[t, k]) for k in COUNTS} for t in mine.index
         }
+
+
+def test_assistance_from_samples_equals_the_engine_tally_for_any_rows(rng):
+    n = 900
+    samples = _random_samples(rng, n).assign(
+        beta=rng.choice([0.0, 0.2, 0.5, 0.9, 1.0], n), tick=np.arange(n)
+    )
+    samples["true_target"] = samples["true_target"].where(samples["true_task"] != "", "")
+    samples["t"] = 0.05 * (samples.groupby("trial_id").cumcount() + 1)
+    tables = {1: {"la": "a", "lb": "b"}, 2: {"la": "b"}}
+    outcomes = [{"label_tasks": tables[1]}, {"label_tasks": tables[2]}, {}]
+    got = assistance([1, 2, 3], outcomes, samples)
+    assert set(got.per_trial["trial_id"]) == {1, 2}
+    assert (got.per_trial["source"] == "samples").all()
+    for tid, table in tables.items():
+        rows = samples[samples["trial_id"] == tid]
+        cols = ["label", "target", "true_task", "true_target", "beta"]
+        truth = RecognitionTally(table, dt_s=0.05).add_rows(rows[cols].itertuples(index=False))
+        s = truth.summary()
+        mine = got.per_trial[got.per_trial["trial_id"] == tid].iloc[0]
+        for k, v in s["assist"].items():
+            assert mine[k] == pytest.approx(v, abs=1e-6), k
+        deciles = got.deciles[got.deciles["trial_id"] == tid].sort_values("decile")
+        for k in ("labelled_ticks", "task_matches", "task_target_matches", "assist_ticks"):
+            assert deciles[k].tolist() == [d[k] for d in s["deciles"]], k
+        tasks = got.per_task[got.per_task["trial_id"] == tid].set_index("task")
+        for task, c in s["per_task"].items():
+            for k in ("assist_ticks", "assist_correct_ticks", "confident_wrong_ticks"):
+                assert tasks.loc[task, k] == c[k], (task, k)
+
+
+def test_a_malformed_stored_assistance_names_the_trial_and_field(seed):
+    rec = {"per_task": {}, "assist": {"ticks": 3, "seconds": "soon"}}
+    with pytest.raises(
+        ValueError, match=r"lab\.db: trial 4: field 'outcome\.recognition\.assist\."
+    ):
+        assistance(
+            [4],
+            [{"recognition": rec}],
+            _random_samples(np.random.default_rng(seed), 5),
+            source="lab.db",
+        )
 
 
 def test_a_malformed_stored_recognition_names_the_trial(tmp_path, seed):

@@ -4,6 +4,7 @@ result, ``asa db check`` accepts it, bad options are refused."""
 
 from __future__ import annotations
 
+import json
 import re
 import subprocess
 import sys
@@ -254,5 +255,18 @@ def test_no_recordings_same_rows_and_db_diff(tmp_path, seed):
     assert found.returncode == 1 and "sample" in found.stdout and "7: x:" in found.stdout
     within = _cli("db", "diff", str(without), str(changed), "--tolerance", "1e-5")
     assert within.returncode == 0, within.stdout
+    # as two machines' runs differ: a few values by rounding, a trial a tick longer
+    with engine.begin() as conn:
+        conn.execute(Sample.__table__.update().where(Sample.id < 4).values(y=Sample.y + 3e-9))
+        last = conn.execute(select(Sample.__table__).order_by(Sample.id.desc())).mappings().first()
+        conn.execute(Sample.__table__.insert().values({**last, "id": last["id"] + 1}))
+    engine.dispose()
+    loose = _cli("db", "diff", str(without), str(changed), "--tolerance", "1e-8", "--json")
+    table = json.loads(loose.stdout)["differences"][0]
+    assert loose.returncode == 1 and table["table"] == "sample"
+    assert table["columns"] == {"x": {"differing": 1, "largest": pytest.approx(1e-6)}}
+    assert table["only_b"] == [repr(last["id"] + 1)] and table["only_a"] == []
+    text = _cli("db", "diff", str(without), str(changed)).stdout
+    assert "column y: 3 values differ, largest difference 3e-09" in text
     bad = _cli("db", "diff", str(without), str(tmp_path / "missing.db"))
     assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1

@@ -248,7 +248,7 @@ def test_completes_a_short_trial_in_every_mode(tmp_path, seed, mode_name):
     result, truth, components = _short_trial(tmp_path, mode_name, seed)
     assert result.status == "completed"
     # what the mode's labels mean is stored with the trial (only task-recognising modes)
-    assert ("label_tasks" in result.outcome) == (mode_name == "contextual_task")
+    assert ("label_tasks" in result.outcome) == mode_name.startswith("contextual_")
     assert result.outcome["completed"], result.outcome
     ids = {c.id for c in components}
     tasks = {task for task, _ in truth}

@@ -7,11 +7,12 @@ one row per trial and true task type of the in-the-loop recognition (issue 16).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
 
+from analysis.data.assistance import Assistance, assistance, empty_assistance
 from analysis.data.load import AnalysisConfig, StudyData
 from analysis.data.recognition import per_trial, recognition_counts
 from questionnaires import nasa_tlx
@@ -48,6 +49,8 @@ class Frames:
         "samples"); empty when no mode recognises tasks or no driver reported intentions.
     modes : the mode levels in report order (protocol order).
     warnings : notes for the report's data-quality section.
+    assistance : the assistance measures of the recognition's trials (issue 40;
+        :class:`analysis.data.assistance.Assistance`), counted trials only.
     """
 
     trials: pd.DataFrame
@@ -58,6 +61,7 @@ class Frames:
     recognition: pd.DataFrame
     modes: tuple[str, ...]
     warnings: tuple[str, ...] = ()
+    assistance: Assistance = field(default_factory=empty_assistance)
 
 
 def _mode_levels(config: AnalysisConfig, seen: list[str]) -> tuple[str, ...]:
@@ -211,6 +215,7 @@ def tidy(data: StudyData) -> Frames:
         recognition=recognition,
         modes=modes,
         warnings=tuple(warnings),
+        assistance=assistance(counted["id"], counted["outcome"], t["sample"], source=data.source),
     )
 
 

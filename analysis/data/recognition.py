@@ -8,6 +8,12 @@ the recognised target matches the true target, or is null (no label, or a label 
 no task type). The session engine stores these counts in ``trial.outcome["recognition"]``;
 for a trial written before it did, they are re-derived here from the samples and the
 trial's ``label_tasks`` (whatever the labels are: primitive ids or task types).
+
+The assistance measures of issue 40 (assist precision and coverage, confident-wrong time,
+the deciles of each trial's labelled time; definitions in ``study.engine.recognition`` and
+docs/decisions.md) come from the stored ``outcome["recognition"]["assist"]`` and
+``["deciles"]`` when the trial stored them, else from the samples (their blend weight
+``beta`` and simulated time ``t``) of trials with ``label_tasks``, else they are missing.
 """
 
 from __future__ import annotations
@@ -26,6 +32,33 @@ SHARES: dict[str, str] = {
     "loop_null_rate": "null_ticks",
 }
 COLUMNS: tuple[str, ...] = ("trial_id", "task", *COUNTS, "source")
+
+# as study.engine.recognition (the session engine's tally), which analysis may not import
+CONFIDENT_BETA = 0.5  # a blend weight at or above this is assistance the driver feels
+DECILES = 10
+# per (trial, true task): of its labelled ticks, those assisted (beta >= CONFIDENT_BETA),
+# assisted with the right task and target, assisted on a wrong target
+TASK_ASSIST: tuple[str, ...] = ("assist_ticks", "assist_correct_ticks", "confident_wrong_ticks")
+# per trial: every tick scored with its blend weight (counts, then seconds)
+TRIAL_ASSIST: tuple[str, ...] = (
+    "ticks",
+    "assist_labelled_ticks",
+    "assist_all_ticks",
+    "assist_correct_ticks",
+    "assist_unlabelled_ticks",
+    "assist_covered_ticks",
+    "confident_wrong_ticks",
+    "seconds",
+    "confident_wrong_s",
+    "confident_wrong_longest_s",
+)
+# per (trial, decile of its labelled ticks in time order)
+DECILE_COUNTS: tuple[str, ...] = (
+    "labelled_ticks",
+    "task_matches",
+    "task_target_matches",
+    "assist_ticks",
+)
 
 
 def recognition_counts(

@@ -1,17 +1,23 @@
-"""How far can per-tick recognition with the thesis's task feature go? (issue 16)
+"""How far can per-tick recognition with the thesis's task feature go? (issues 16, 40)
 
 Reproduces the figures of docs/results.md, "Issue 16: what the task feature can carry":
 
 1. The trials of ``asa bench --only recognition`` (3 synthetic drivers x the shipped
    scenes with a dock, seed 1616, the shipped model), recording every tick's candidate
-   components and task features (Eq. 6.1) as the contextual mode computed them.
-2. Offline, on exactly those ticks: the mode's own per-tick decision (Eq. 5.8), the
-   same scores filtered over time (the recursive Bayes filter of Ch. 4, Eq. 4.4 with
-   the transition 4.14, stay 0.95, the SOGP confidences 5.10 as the likelihood), and
-   supervised upper bounds: a random forest trained on the *in-loop* candidate features
-   and true labels of the other drivers (leave one driver out, same scenes, so an
-   optimistic bound), on the thesis feature alone, with a point-vs-surface target bit,
-   and with the component kind one-hot.
+   components and task features (Eq. 6.1) from what the contextual mode was given (the
+   observation's components and the driver's command) and what it answered (a view of
+   the mode, :class:`Recorder`, passed to the trial as ``wrap_mode``: no private function
+   of the mode is patched).
+2. Offline, on exactly those ticks, one row per *recogniser* (a function from the recorded
+   ticks to a decision per tick, :data:`Recogniser`): the mode's own decisions in the
+   loop; the per-tick decision (Eq. 5.8); the same scores filtered over time (the
+   recursive Bayes filter of Ch. 4, Eq. 4.4 with the transition 4.14, stay 0.95, the SOGP
+   confidences 5.10 as the likelihood); and supervised upper bounds: a random forest
+   trained on the *in-loop* candidate features and true labels of the other drivers
+   (leave one driver out, same scenes, so an optimistic bound; one driver: its first and
+   second half), on the thesis feature alone, with a point-vs-surface target bit, and
+   with the component kind one-hot. :func:`recognisers` lists the rows; a further
+   recogniser is one more entry (``measure(rows, {**recognisers(), "mine": mine})``).
 
 Run from the repository root (about 6 minutes on 2 cores; ``--generated 10 --drivers
 2``: the generated floor plans of seeds 0-9 instead, 2 drivers each, about 15 minutes):
@@ -22,61 +28,98 @@ Run from the repository root (about 6 minutes on 2 cores; ``--generated 10 --dri
 from __future__ import annotations
 
 import argparse
+import functools
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
 from scipy.special import ndtr
 from sklearn.ensemble import RandomForestClassifier
 
-import autonomy.contextual as ctx
-from autonomy.features import encode
+from autonomy.features import encode, task_features
 from autonomy.model import load_model
 from autonomy.task_types import contextual_task, primitive_motions
+from autonomy.types import as_candidates
 from sim.scenario import load_scenario
 from study.bench.recognition import _SEED, drivable_scenes, scene_recognition, write_generated
 from study.data.storage import open_database
 
 KINDS = ("doorway", "gap", "dock", "object", "wall")
 
+# the recorded ticks -> per tick (true task, true target, recognised task, target)
+Recogniser = Callable[[list[dict]], list[tuple[str, str, str, str]]]
 
-def record(folder: Path, drivers: int, scenes: list[str]) -> list[dict]:
-    """Every tick of the bench's trials: candidate ids, kinds, features, true labels."""
-    log: list[tuple] = []
-    seen: dict = {}
-    near, step = ctx._nearest_candidates, ctx.ContextualTaskMode.step
 
-    def nearest(components, n):
-        targets, order = near(components, n)
-        seen["ids"] = [str(components[int(k)].id) for k in order]
-        seen["kinds"] = [str(components[int(k)].kind) for k in order]
-        seen["q"] = ctx.task_features(targets[order], seen["u"])
-        return targets, order
+class Recorder:
+    """The contextual mode as the trial sees it, recording per step the candidates it was
+    offered (the ``candidates`` components nearest by target point, stable order, as the
+    mode takes them; none when the command is below ``min_input`` or there is none), their
+    kinds and task features (Eq. 6.1) for the normalised command, and the mode's answer.
+    """
 
-    def stepping(self, obs, u):
-        seen.clear()
-        limit = np.array([self.robot_.max_speed] * 2 + [self.robot_.max_yaw_rate])
-        seen["u"] = np.asarray(u, dtype=float) / limit
-        out = step(self, obs, u)
-        log.append((seen.get("ids"), seen.get("kinds"), seen.get("q"), out.label, out.target))
+    def __init__(self, mode: Any, log: list[tuple]) -> None:
+        self.mode, self.log = mode, log
+        settings = mode.settings_dict()
+        self.n = int(settings.get("candidates", 10))
+        self.min_input = float(settings.get("min_input", 0.05))
+        self.name = mode.name
+        self.limit = np.ones(3)
+
+    def reset(self, robot: Any) -> None:
+        self.limit = np.array([robot.max_speed, robot.max_speed, robot.max_yaw_rate])
+        self.mode.reset(robot)
+
+    def label_tasks(self) -> dict[str, str] | None:
+        return self.mode.label_tasks()
+
+    def settings_dict(self) -> dict[str, Any]:
+        return self.mode.settings_dict()
+
+    def step(self, obs: Any, u: np.ndarray) -> Any:
+        out = self.mode.step(obs, u)
+        u_norm = np.asarray(u, dtype=float) / self.limit
+        ids = kinds = q = None
+        if len(obs.components) and np.hypot(u_norm[0], u_norm[1]) >= self.min_input:
+            ids, kinds, q = _candidates(as_candidates(obs.components), u_norm, self.n)
+        self.log.append((ids, kinds, q, out.label, out.target))
         return out
 
-    ctx._nearest_candidates, ctx.ContextualTaskMode.step = nearest, stepping
+
+def _candidates(components: Any, u_norm: np.ndarray, n: int) -> tuple[list, list, np.ndarray]:
+    """The ``n`` components nearest the robot by target point (stable order): their ids,
+    kinds and task features (m, 6) for the normalised command ``u_norm`` (3,)."""
+    targets = np.asarray(components.target_points(), dtype=float).reshape(-1, 2)
+    d2 = targets[:, 0] * targets[:, 0] + targets[:, 1] * targets[:, 1]
+    order = np.argsort(d2, kind="stable")[:n]
+    ids = [str(components[int(k)].id) for k in order]
+    kinds = [str(components[int(k)].kind) for k in order]
+    return ids, kinds, task_features(targets[order], u_norm)
+
+
+def record(
+    folder: Path, drivers: int, scenes: list[str], mode_settings: dict | None = None
+) -> list[dict]:
+    """Every tick of the bench's trials (the contextual mode with ``mode_settings``):
+    candidate ids, kinds, features, the mode's label and target, the true labels."""
     rows: list[dict] = []
-    try:
-        for scene in scenes:
-            log.clear()
-            scene_recognition(folder, scene, drivers, _SEED)
-            truth = _truth(folder, load_scenario(scene).name, drivers)
-            if len(truth) != len(log):
-                raise RuntimeError(f"{scene}: {len(truth)} samples but {len(log)} mode steps")
-            for (ids, kinds, q, label, target), t in zip(log, truth, strict=True):
-                if label != t["label"] or target != t["target"]:
-                    raise RuntimeError(f"{scene}: the recorded step is not the stored sample")
-                rows.append({"scene": scene, **t, "ids": ids, "kinds": kinds, "q": q})
-    finally:
-        ctx._nearest_candidates, ctx.ContextualTaskMode.step = near, step
+    outside = 0  # ticks whose recognised target is none of the recorded candidates
+    for scene in scenes:
+        log: list[tuple] = []
+        wrap = functools.partial(Recorder, log=log)
+        scene_recognition(folder, scene, drivers, _SEED, mode_settings, wrap_mode=wrap)
+        truth = _truth(folder, load_scenario(scene).name, drivers)
+        if len(truth) != len(log):
+            raise RuntimeError(f"{scene}: {len(truth)} samples but {len(log)} mode steps")
+        for (ids, kinds, q, label, target), t in zip(log, truth, strict=True):
+            if label != t["label"] or target != t["target"]:
+                raise RuntimeError(f"{scene}: the recorded step is not the stored sample")
+            outside += bool(target) and (ids is None or target not in ids)
+            rows.append({"scene": scene, **t, "ids": ids, "kinds": kinds, "q": q})
+    if outside:
+        print(f"note: {outside} ticks recognised a target outside the recorded candidates")
     return rows
 
 
@@ -149,6 +192,16 @@ def _filtered(belief: dict, ids: list[str], lik: np.ndarray, stay: float) -> tup
     return k // c, k % c
 
 
+def _folds(rows: list[dict], ticks: np.ndarray) -> np.ndarray:
+    """The fold of every tick index in ``ticks``: its driver (scene and driver number), or
+    with a single driver its half of the recorded ticks."""
+    keys = [(rows[n]["scene"], rows[n]["driver"]) for n in ticks]
+    if len(set(keys)) > 1:
+        index = {k: i for i, k in enumerate(dict.fromkeys(keys))}
+        return np.array([index[k] for k in keys])
+    return (np.asarray(ticks) >= len(rows) // 2).astype(int)
+
+
 def forest_decisions(rows: list[dict], extra: str) -> list[tuple]:
     """Leave-one-driver-out random forest over candidates: class = the true task for the
     true target's row, "none" for every other candidate; the tick's decision is the
@@ -169,13 +222,14 @@ def forest_decisions(rows: list[dict], extra: str) -> list[tuple]:
             labels.append(r["true_task"] if cid == r["true_target"] else "none")
             keys.append((n, i))
     X, y, keys = np.array(feats), np.array(labels), np.array(keys)
-    driver = np.array([rows[n]["driver"] for n, _ in keys])
+    driver = _folds(rows, keys[:, 0])
     chosen: dict[int, tuple[str, str]] = {}
     for d in np.unique(driver):
         fit = RandomForestClassifier(200, min_samples_leaf=5, random_state=0, n_jobs=2)
         fit.fit(X[driver != d], y[driver != d])
         P = fit.predict_proba(X[driver == d])
-        P[:, list(fit.classes_).index("none")] = -1.0
+        if "none" in fit.classes_:
+            P[:, list(fit.classes_).index("none")] = -1.0
         best: dict[int, tuple[float, str, str]] = {}
         for (n, i), p in zip(keys[driver == d], P, strict=True):
             j = int(np.argmax(p))
@@ -185,6 +239,35 @@ def forest_decisions(rows: list[dict], extra: str) -> list[tuple]:
     return [
         (r["true_task"], r["true_target"], *chosen.get(n, ("", ""))) for n, r in enumerate(rows)
     ]
+
+
+def in_loop_decisions(rows: list[dict]) -> list[tuple]:
+    """The mode's own decisions in the loop (its label is the task type)."""
+    return [(r["true_task"], r["true_target"], r["label"], r["target"]) for r in rows]
+
+
+def recognisers() -> dict[str, Recogniser]:
+    """The table's rows: name -> recogniser."""
+    return {
+        "in the loop (the mode's own output)": in_loop_decisions,
+        "shipped recogniser, Eq. 5.8 per tick": functools.partial(sogp_decisions, stay=None),
+        "Ch. 4 filter over the SOGP confidences": functools.partial(sogp_decisions, stay=0.95),
+        "forest on in-loop data (thesis feature)": functools.partial(forest_decisions, extra=""),
+        "forest on in-loop data (+ point/surface bit)": functools.partial(
+            forest_decisions, extra="point"
+        ),
+        "forest on in-loop data (+ kind one-hot)": functools.partial(
+            forest_decisions, extra="kind"
+        ),
+    }
+
+
+def measure(rows: list[dict], table: dict[str, Recogniser] | None = None) -> dict[str, dict]:
+    """Every recogniser of ``table`` (default :func:`recognisers`) scored on the recorded
+    ticks ``rows``: name -> {"task", "task_target", "per_task"} (shares of the labelled
+    ticks)."""
+    table = recognisers() if table is None else table
+    return {name: _score(decide(rows)) for name, decide in table.items()}
 
 
 def main() -> None:
@@ -203,14 +286,8 @@ def main() -> None:
             scenes = write_generated(folder, tuple(range(args.generated)))
         rows = record(folder, args.drivers, scenes)
     print("labelled ticks:", sum(r["true_task"] != "" for r in rows))
-    print("shipped recogniser, Eq. 5.8 per tick:", _score(sogp_decisions(rows, None)))
-    print("Ch. 4 filter over the SOGP confidences:", _score(sogp_decisions(rows, 0.95)))
-    for extra, what in (
-        ("", "thesis feature"),
-        ("point", "+ point/surface bit"),
-        ("kind", "+ kind one-hot"),
-    ):
-        print(f"forest on in-loop data ({what}):", _score(forest_decisions(rows, extra)))
+    for name, score in measure(rows).items():
+        print(f"{name}:", score)
 
 
 if __name__ == "__main__":

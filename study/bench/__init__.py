@@ -3,8 +3,9 @@
 Every performance budget of DESIGN.md is measured here, never asserted in a test
 (:mod:`study.bench.budgets` compares the figures with them). A group is a module
 ``study.bench.<group>`` with a function ``run(quick: bool) -> dict`` returning flat
-JSON-ready figures; the results of all groups are merged into one JSON object. To add
-a group, write the module and add it to ``GROUPS``.
+JSON-ready figures (a group may take further keyword options, passed by
+:func:`measure`'s ``options``); the results of all groups are merged into one JSON
+object. To add a group, write the module and add it to ``GROUPS``.
 """
 
 from __future__ import annotations
@@ -13,7 +14,8 @@ import importlib
 import os
 import platform
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
+from typing import Any
 
 from study.bench.budgets import check_budgets
 
@@ -40,6 +42,7 @@ def measure(
     *,
     quick: bool = False,
     progress: Callable[[str], None] | None = None,
+    options: Mapping[str, Mapping[str, Any]] | None = None,
 ) -> dict[str, dict]:
     """Run the named benchmark groups (all when ``only`` is empty): ``{group: figures}``.
 
@@ -48,6 +51,8 @@ def measure(
     only : names from :data:`GROUPS`; unknown names raise ``ValueError``.
     quick : fewer repetitions, for smoke tests; figures are noisier.
     progress : called with each group's name before it runs.
+    options : group -> keyword options of its ``run`` (e.g. ``{"recognition":
+        {"generated": (20, 21)}}``); a group that does not run may not have any.
     """
     names = list(only) if only else list(GROUPS)
     unknown = [n for n in names if n not in GROUPS]
@@ -55,12 +60,16 @@ def measure(
         raise ValueError(
             f"only: {unknown[0]!r} is not a benchmark group; allowed: {', '.join(GROUPS)}"
         )
+    stray = [g for g in options or {} if g not in names]
+    if stray:
+        raise ValueError(f"options: group {stray[0]!r} does not run ({', '.join(names)} do)")
     per_group: dict[str, dict] = {}
     for name in names:
         if progress is not None:
             progress(name)
         start = time.perf_counter()
-        figures = importlib.import_module(GROUPS[name]).run(quick=quick)
+        extra = dict((options or {}).get(name, {}))
+        figures = importlib.import_module(GROUPS[name]).run(quick=quick, **extra)
         figures[f"{name}_bench_wall_s"] = round(time.perf_counter() - start, 3)
         per_group[name] = figures
     return per_group

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from typing import Any
 
 import click
 
@@ -20,7 +21,35 @@ from study.bench.budgets import table_rows
 )
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object and nothing else.")
 @click.option("--quick", is_flag=True, help="Fewer repetitions: a smoke run, noisier figures.")
-def bench(only: tuple[str, ...], as_json: bool, quick: bool) -> None:
+@click.option(
+    "--generated-seeds",
+    "generated_seeds",
+    default=None,
+    metavar="SEEDS",
+    help="Group recognition: the generated floor plans' seeds, e.g. 20-29 (the held-out "
+    "seeds: run them once, at the end) or 0,3,5. Default 0-9.",
+)
+@click.option(
+    "--generated-only",
+    is_flag=True,
+    help="Group recognition: drive the generated floor plans only, no shipped scene.",
+)
+@click.option(
+    "--compare-recogniser",
+    "compare",
+    multiple=True,
+    metavar="NAME",
+    help="Group recognition: measure the contextual mode with setting recogniser = NAME "
+    "too, its figures beside the default's (repeatable).",
+)
+def bench(
+    only: tuple[str, ...],
+    as_json: bool,
+    quick: bool,
+    generated_seeds: str | None,
+    generated_only: bool,
+    compare: tuple[str, ...],
+) -> None:
     """Measure the performance budgets and print the figures.
 
     Headless, one core per measurement. Every group adds its keys to one JSON
@@ -40,7 +69,18 @@ def bench(only: tuple[str, ...], as_json: bool, quick: bool) -> None:
         if not as_json:
             click.echo(f"running benchmark group {name} ...", err=True)
 
-    per_group = measure(list(only), quick=quick, progress=progress)
+    options = _recognition_options(generated_seeds, generated_only, compare)
+    if options and "recognition" not in (only or GROUPS):
+        raise ValueError(
+            "asa bench: --generated-seeds, --generated-only and --compare-recogniser "
+            "apply to group recognition (add --only recognition)"
+        )
+    per_group = measure(
+        list(only),
+        quick=quick,
+        progress=progress,
+        options={"recognition": options} if options else None,
+    )
     figures = merge(per_group, quick=quick)
     if as_json:
         click.echo(json.dumps(figures, sort_keys=True))
@@ -53,6 +93,47 @@ def bench(only: tuple[str, ...], as_json: bool, quick: bool) -> None:
 
 
 _STAGES_PREFIX = "trial_stages_"
+
+
+def parse_seeds(text: str) -> tuple[int, ...]:
+    """Seeds written ``"20-29"`` (inclusive), ``"0,3,5"`` or a mix (``"0-2,7"``).
+
+    Raises
+    ------
+    ValueError
+        For anything else, naming the text and the allowed forms.
+    """
+    seeds: list[int] = []
+    try:
+        for part in text.split(","):
+            lo, dash, hi = part.strip().partition("-")
+            first, last = int(lo), int(hi) if dash else int(lo)
+            if first < 0 or last < first:
+                raise ValueError
+            seeds += range(first, last + 1)
+    except ValueError:
+        raise ValueError(
+            f"generated seeds {text!r}: expected a range like 20-29, a list like 0,3,5 or "
+            "a mix (non-negative integers, ranges low-high)"
+        ) from None
+    return tuple(seeds)
+
+
+def _recognition_options(
+    generated_seeds: str | None, generated_only: bool, compare: tuple[str, ...]
+) -> dict[str, Any]:
+    """The recognition group's keyword options from the command line's."""
+    options: dict[str, Any] = {}
+    if generated_seeds is not None:
+        try:
+            options["generated"] = parse_seeds(generated_seeds)
+        except ValueError as error:
+            raise ValueError(f"asa bench: --generated-seeds: {error}") from None
+    if generated_only:
+        options["scenes"] = []
+    if compare:
+        options["compare"] = {name: {"recogniser": name} for name in compare}
+    return options
 
 
 def _print_stages(figures: dict) -> None:

@@ -18,29 +18,21 @@ import click
 
 from autonomy.evaluation import format_report
 from study.cli import SEED
-from study.jobs.evaluation import DemonstrationsMismatchError, run_evaluation
+from study.jobs.evaluation import run_evaluation
 
 _FLAGS = ("folds", "workers", "repeats")  # run_evaluation's parameters that are flags
 
 
 def _in_flags(error: ValueError) -> ValueError:
     """The job's error in the command line's words: flags instead of parameters."""
-    if isinstance(error, DemonstrationsMismatchError):
-        r = error.recipe
-        source = (
-            f"recorded with --task {r['task']} --runs {r['runs']} --seed {r['seed']}"
-            if error.recorded
-            else f"cached in {error.folder}"
-        )
-        return ValueError(
-            f"{error.where}: field 'metadata.data_sha256': the demonstrations {source} hash "
-            f"to {error.got[:16]}..., the model to {error.expected[:16]}...; pass "
-            "--demonstrations DIR"
-        )
     text = str(error)
     if any(text.startswith(f"{name}: ") for name in _FLAGS):
         return ValueError(f"--{text}")
     return error
+
+
+def _warn(line: str) -> None:
+    click.echo(f"asa: warning: {line}", err=True)
 
 
 def _duration(seconds: float) -> str:
@@ -75,7 +67,9 @@ class _Progress:
     default=None,
     type=click.Path(path_type=Path),
     help="Directory written by `asa demonstrations record` (default: the model's own "
-    "demonstrations, cached; recorded again if missing).",
+    "demonstrations, recorded again from the model's recipe if missing and cached; "
+    "recorded on another CPU they may hash differently from the model's data, which a "
+    "warning on stderr names).",
 )
 @click.option(
     "--model",
@@ -137,6 +131,7 @@ def evaluate_command(
             workers=workers,
             repeats=repeats,
             progress=None if quiet else _Progress(),
+            warn=_warn,
         )
     except ValueError as error:
         raise _in_flags(error) from None

@@ -7,7 +7,11 @@ or where something happened on the machine rather than what happened in the stud
 (:data:`WALL_CLOCK_COLUMNS`: creation and start/end times, the humans' tick jitter, the
 recordings' file names, the platform version, the model file's path, the machine, a
 session's random global key), including such keys inside JSON columns.
-Floats compare equal within ``tolerance`` (absolute); everything else exactly.
+Floats compare equal within ``tolerance`` (absolute); everything else exactly. For
+each differing table the report says, per column, how many values differ and by how
+much at most, and which rows only one database has: the same study run on two machines
+whose CPUs round differently is compared this way (docs/decisions.md, "Reproducibility
+across machines").
 """
 
 from __future__ import annotations
@@ -44,9 +48,20 @@ MAX_SHOWN = 5  # differing rows shown per table
 
 
 @dataclass(frozen=True, slots=True)
+class ColumnDiff:
+    """How one column differs over the common rows: values beyond the tolerance, and the
+    largest absolute difference of its floats (inf where non-float values differ)."""
+
+    column: str
+    differing: int
+    largest: float
+
+
+@dataclass(frozen=True, slots=True)
 class TableDiff:
-    """How one table differs: row counts, the number of differing rows and the first
-    few differences as ``(primary key, column, value in a, value in b)``."""
+    """How one table differs: row counts, the number of differing rows, the first
+    few differences as ``(primary key, column, value in a, value in b)``, each differing
+    column's :class:`ColumnDiff` and the first keys found in only one database."""
 
     table: str
     rows_a: int
@@ -54,6 +69,9 @@ class TableDiff:
     differing_rows: int
     first: tuple[tuple[Any, str, Any, Any], ...]
     largest_float_difference: float  # over all compared floats of the common rows
+    columns: tuple[ColumnDiff, ...] = ()
+    only_a: tuple[Any, ...] = ()  # the first MAX_SHOWN keys
+    only_b: tuple[Any, ...] = ()
 
 
 @dataclass(frozen=True, slots=True)
@@ -85,6 +103,12 @@ class DiffReport:
                     "rows_b": d.rows_b,
                     "differing_rows": d.differing_rows,
                     "largest_float_difference": d.largest_float_difference,
+                    "columns": {
+                        c.column: {"differing": c.differing, "largest": _json_float(c.largest)}
+                        for c in d.columns
+                    },
+                    "only_a": [repr(k) for k in d.only_a],
+                    "only_b": [repr(k) for k in d.only_b],
                     "first": [
                         {"key": k, "column": c, "a": repr(x), "b": repr(y)}
                         for k, c, x, y in d.first
@@ -107,6 +131,14 @@ class DiffReport:
                 f"  {d.table}: rows {d.rows_a} vs {d.rows_b}, {d.differing_rows} common rows "
                 f"differ (largest float difference {d.largest_float_difference:.3g})"
             )
+            lines += [
+                f"    column {c.column}: {c.differing} values differ, largest difference "
+                + ("(not numbers)" if math.isinf(c.largest) else f"{c.largest:.3g}")
+                for c in d.columns
+            ]
+            for side, keys in (("a", d.only_a), ("b", d.only_b)):
+                if keys:
+                    lines.append(f"    only in {side}: " + ", ".join(repr(k) for k in keys))
             lines += [f"    {k}: {c}: {x!r} vs {y!r}" for k, c, x, y in d.first]
         return "\n".join(lines)
 
@@ -167,6 +199,7 @@ def _rows(session: Session, table: Any) -> dict[Any, dict[str, Any]]:
 
 def _compare(name: str, a: dict, b: dict, tolerance: float) -> TableDiff | None:
     differing, first, largest = 0, [], 0.0
+    per_column: dict[str, list[float]] = {}  # column -> [values differing, largest gap]
     for key in sorted(a.keys() & b.keys(), key=repr):
         bad = False
         for column, x in a[key].items():
@@ -176,12 +209,25 @@ def _compare(name: str, a: dict, b: dict, tolerance: float) -> TableDiff | None:
                 largest = max(largest, gap)
             if gap > tolerance:
                 bad = True
+                stats = per_column.setdefault(column, [0, 0.0])
+                stats[0] += 1
+                stats[1] = max(stats[1], gap)
                 if len(first) < MAX_SHOWN:
                     first.append((key, *_leaf(x, y, tolerance, column)))
         differing += bad
     if differing == 0 and len(a) == len(b) and a.keys() == b.keys():
         return None
-    return TableDiff(name, len(a), len(b), differing, tuple(first), largest)
+    columns = tuple(ColumnDiff(c, int(n), float(g)) for c, (n, g) in per_column.items())
+    only_a = tuple(sorted(a.keys() - b.keys(), key=repr)[:MAX_SHOWN])
+    only_b = tuple(sorted(b.keys() - a.keys(), key=repr)[:MAX_SHOWN])
+    return TableDiff(
+        name, len(a), len(b), differing, tuple(first), largest, columns, only_a, only_b
+    )
+
+
+def _json_float(x: float) -> float | str:
+    """``x`` for JSON: ``"inf"`` for an infinity (non-float values that differ)."""
+    return x if math.isfinite(x) else "inf"
 
 
 def diff(a: str | Path, b: str | Path, *, tolerance: float = 0.0) -> DiffReport:

@@ -24,6 +24,7 @@ from sim.types import Contact, Pose2D
 from study.data.recording import NoRecording, TrialRecorder
 from study.engine.clocks import DT, ExperimenterControl, FreeClock, WallClock
 from study.engine.events import EventSink, TrialWriter, jsonable
+from study.engine.model_file import model_identity
 from study.engine.recognition import RecognitionTally
 from study.engine.stages import (
     COMPONENTS,
@@ -143,9 +144,20 @@ class TrialLoop:
         table = mode.label_tasks() if mode is not None else None
         # what the mode's labels mean, to score its recognition (None: situations, unscored)
         self.label_tasks = dict(table) if table is not None else None
-        self.tally = RecognitionTally(table) if table is not None else None
+        # scored per tick of simulated time (the world's tick), blend weights included
+        dt_s = float(world.settings.dt)
+        self.tally = RecognitionTally(table, dt_s=dt_s) if table is not None else None
         # the mode's effective settings, stored with the outcome (e.g. reactive arbitration)
         self.mode_settings = jsonable(mode.settings_dict()) if mode is not None else None
+        self.model = model_identity(self.mode_settings)  # the model file's name and SHA-256
+        # an oracle mode (an ablation) is told the synthetic participant's true intention
+        self.oracle = mode is not None and mode.needs_intention()
+        if self.oracle and participant.kind != "synthetic":
+            raise ValueError(
+                f"mode {mode.name!r}: its settings drive it by the participant's true "
+                f"intention, which only synthetic participants have (this participant is "
+                f"{participant.kind!r}); use another recogniser for people"
+            )
         self._components_read = False  # the mode reads the components (stage clock only)
 
     # -------------------------------------------------------------- run
@@ -290,6 +302,8 @@ class TrialLoop:
             out = None
             v = _ZERO3
         else:
+            if self.oracle:
+                mode.observe_intention(*self.participant.intention())
             out = mode.step(self.obs, u)
             v = out.v
         if stages is not None:
@@ -337,7 +351,7 @@ class TrialLoop:
         if lsl is not None:
             lsl.state(record, velocity)
         if self.tally is not None:
-            self.tally.add(record.label, record.target, task, target)
+            self.tally.add(record.label, record.target, task, target, record.beta)
         if stages is not None:
             stages.lap(DATABASE)
         assert self.sink is not None  # made by run()
@@ -470,6 +484,8 @@ class TrialLoop:
                 outcome["passed"] = bool(po.completed and po.collisions <= self.max_collisions)
         if self.mode_settings is not None:
             outcome["mode_settings"] = self.mode_settings
+        if self.model is not None:
+            outcome["model"] = self.model
         if self.label_tasks is not None:
             outcome["label_tasks"] = self.label_tasks
         if self.tally is not None and self.tally.counts:  # the driver said what they did

@@ -11,7 +11,7 @@ import multiprocessing
 import os
 import shutil
 from collections.abc import Callable, Iterable, Iterator
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -23,31 +23,33 @@ RECIPE = {"task": "all", "runs": 12, "seed": 7}  # autonomy/models/README.md
 _FROM_MODEL = ("stride",)  # the model's settings the evaluation takes over
 
 
-class DemonstrationsMismatchError(ValueError):
-    """The demonstrations found for a model (cached, or recorded now) do not hash to its
-    ``metadata["data_sha256"]``; the fields let a caller word its own advice."""
+@dataclass(frozen=True, slots=True)
+class DemonstrationsMismatch:
+    """The demonstrations found for a model (cached, or recorded now from its recipe) do
+    not hash to its ``metadata["data_sha256"]``: recorded on a machine whose CPU rounds
+    differently (docs/decisions.md, "Reproducibility across machines"), or a cache
+    folder holding other data. Not an error: the evaluation runs on them and says so."""
 
-    def __init__(
-        self,
-        where: str,
-        *,
-        folder: Path,
-        recorded: bool,
-        recipe: dict[str, Any],
-        got: str,
-        expected: str,
-    ):
-        self.where, self.folder, self.recorded = where, folder, recorded
-        self.recipe, self.got, self.expected = recipe, got, expected
-        source = (
-            "recorded with " + ", ".join(f"{k}={v!r}" for k, v in recipe.items())
-            if recorded
-            else f"cached in {folder}"
-        )
-        super().__init__(
-            f"{where}: field 'metadata.data_sha256': the demonstrations {source} hash to "
-            f"{got[:16]}..., the model to {expected[:16]}...; pass the demonstrations "
-            "folder explicitly (demonstrations)"
+    where: str  # the model file
+    folder: Path
+    recorded: bool  # recorded now (else found in the cache)
+    recipe: dict[str, Any]  # task, runs, seed of ``asa demonstrations record``
+    got: str
+    expected: str
+
+    def text(self, *, flags: bool = False) -> str:
+        """One line naming both hashes; ``flags``: the recipe as command-line flags."""
+        if not self.recorded:
+            source = f"cached in {self.folder}"
+        elif flags:
+            r = self.recipe
+            source = f"recorded with --task {r['task']} --runs {r['runs']} --seed {r['seed']}"
+        else:
+            source = "recorded with " + ", ".join(f"{k}={v!r}" for k, v in self.recipe.items())
+        return (
+            f"{self.where}: field 'metadata.data_sha256': the demonstrations {source} hash to "
+            f"{self.got[:16]}..., the model's to {self.expected[:16]}... (another machine's "
+            "rounding, or other data); evaluating on these"
         )
 
 
@@ -67,13 +69,16 @@ def cached_demonstrations(
     runs: int = RECIPE["runs"],
     seed: int = RECIPE["seed"],
     where: str = "model",
-) -> tuple[Path, bool]:
-    """The cached demonstrations whose moving ticks hash to ``data_sha256``, recording
-    them (``task``, ``runs``, ``seed`` as ``asa demonstrations record``) if missing.
+) -> tuple[Path, bool, DemonstrationsMismatch | None]:
+    """The cached demonstrations of the model whose data hash to ``data_sha256``,
+    recording them (``task``, ``runs``, ``seed`` as ``asa demonstrations record``) if
+    missing.
 
-    They are recorded into a temporary sibling folder, checked, and only then renamed
-    into place, so an interrupted recording never leaves a half-filled cache; a cached
-    folder is checked on every use.
+    They are recorded into a temporary sibling folder and only then renamed into place,
+    so an interrupted recording never leaves a half-filled cache; a cached folder is
+    hashed on every use. Demonstrations recorded on another CPU may hash differently
+    (floating-point results differ in the last bits): they are kept and used, and the
+    difference is returned for the caller to report.
 
     Returns
     -------
@@ -81,13 +86,13 @@ def cached_demonstrations(
         ``cache_root() / data_sha256[:16]``.
     recorded : bool
         Whether they were recorded now.
+    mismatch : DemonstrationsMismatch or None
+        Set when they do not hash to ``data_sha256``.
 
     Raises
     ------
     ValueError
-        Naming ``where``, if ``data_sha256`` is missing;
-        :class:`DemonstrationsMismatchError` if the demonstrations (cached or recorded)
-        do not hash to ``data_sha256``.
+        Naming ``where``, if ``data_sha256`` is missing.
     """
     from autonomy.training import data_sha256 as hash_of
     from study.jobs.demonstrations import load_demonstrations, plan_recording, record_demonstrations
@@ -102,23 +107,24 @@ def cached_demonstrations(
         shutil.rmtree(folder, ignore_errors=True)
         record_demonstrations(folder, plan_recording(task, None), runs, seed=seed)
     got = hash_of(load_demonstrations(folder).q)
-    if got != data_sha256:
-        if recorded:
-            shutil.rmtree(folder, ignore_errors=True)
-        raise DemonstrationsMismatchError(
-            where,
-            folder=final,
-            recorded=recorded,
-            recipe={"task": task, "runs": runs, "seed": seed},
-            got=got,
-            expected=data_sha256,
-        )
     if recorded:
         try:
             folder.rename(final)
         except OSError:  # another process filled the cache meanwhile
             shutil.rmtree(folder, ignore_errors=True)
-    return final, recorded
+    mismatch = None
+    if got != data_sha256:
+        recipe = {"task": task, "runs": runs, "seed": seed}
+        mismatch = DemonstrationsMismatch(where, final, recorded, recipe, got, data_sha256)
+    return final, recorded, mismatch
+
+
+def model_recipe(metadata: dict[str, Any]) -> dict[str, Any]:
+    """How the model's demonstrations were recorded (``metadata["recipe"]["record"]``:
+    task, runs, seed), the shipped model's :data:`RECIPE` for a model without one."""
+    record = metadata.get("recipe", {}).get("record", {}) if isinstance(metadata, dict) else {}
+    ok = isinstance(record, dict) and set(RECIPE) <= set(record)
+    return {k: record[k] for k in RECIPE} if ok else dict(RECIPE)
 
 
 def run_evaluation(
@@ -130,6 +136,7 @@ def run_evaluation(
     workers: int = 1,
     repeats: int = 1,
     progress: Callable[[int, int], None] | None = None,
+    warn: Callable[[str], None] | None = None,
 ) -> dict[str, Any]:
     """Evaluate the model's recipe on the demonstrations in ``demonstrations``.
 
@@ -141,7 +148,10 @@ def run_evaluation(
     being the first seed's with their summary under ``"repeats"``
     (:func:`autonomy.evaluation.summarise_repeats`). ``progress(done, total)`` is called
     as each job (fold or introspection pair) of each repeat finishes, counting over all
-    repeats (``total`` = repeats x jobs per evaluation).
+    repeats (``total`` = repeats x jobs per evaluation). ``warn(line)`` is told when the
+    model's own demonstrations, recorded again from its recipe (:func:`model_recipe`),
+    hash differently than the model says (another CPU); the result's
+    ``"demonstrations"`` names both hashes.
 
     Raises
     ------
@@ -161,10 +171,20 @@ def run_evaluation(
     model_path = Path(DEFAULT_MODEL if model is None else model)
     metadata = load_model(model_path).metadata
     settings = _with_model_recipe(settings, metadata, model_path)
+    provenance: dict[str, Any] = {"folder": None if demonstrations is None else str(demonstrations)}
     if demonstrations is None:
-        demonstrations, _ = cached_demonstrations(
-            metadata.get("data_sha256"), where=str(model_path)
+        demonstrations, _, mismatch = cached_demonstrations(
+            metadata.get("data_sha256"), where=str(model_path), **model_recipe(metadata)
         )
+        provenance = {
+            "folder": str(demonstrations),
+            "recipe": model_recipe(metadata),
+            "model_data_sha256": metadata.get("data_sha256"),
+            "data_sha256": metadata.get("data_sha256") if mismatch is None else mismatch.got,
+            "same_as_model": mismatch is None,
+        }
+        if mismatch is not None and warn is not None:
+            warn(mismatch.text(flags=True))
     demos = load_demonstrations(demonstrations)
     with contextlib.ExitStack() as stack:
         map_fn: Any = map
@@ -187,6 +207,7 @@ def run_evaluation(
             for i in range(repeats)
         ]
     result = results[0]
+    result["demonstrations"] = provenance
     if repeats > 1:
         result["repeats"] = summarise_repeats(results)
     return result

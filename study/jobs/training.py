@@ -55,8 +55,44 @@ def train_model(
             offsets=demos.cand_offsets,
             ids=demos.cand_ids,
             target=demos.target,
+            kinds=demos.cand_kinds,
         ),
+        executing=demos.phase != "approach",
     )
+    recipe = recording_recipe(demonstrations)
+    if recipe is not None:
+        model.metadata["recipe"] = {"record": recipe, "train": {"seed": int(seed)}}
     refuse_existing([out], force=force)  # made meanwhile by another process?
     save_model(model, out)
     return model
+
+
+def recording_recipe(demonstrations: str | Path) -> dict[str, object] | None:
+    """The ``asa demonstrations record`` flags that made the folder ``demonstrations``
+    (``{"task", "runs", "seed"}``, read from its manifest), or None when no single call
+    made it (several seeds, unequal runs per task, scenes other than the tasks' own), so
+    that ``asa evaluate`` can record the model's data again on another machine."""
+    import json
+
+    from tasks.contextual import DEFAULT_SCENES, DEMONSTRATED
+
+    try:
+        manifest = json.loads((Path(demonstrations) / "manifest.json").read_text())
+        runs = manifest["runs"]
+        per_task: dict[str, int] = {}
+        for run in runs:
+            if run["scene"] != DEFAULT_SCENES[run["task"]] or run["seed"] != manifest["seed"]:
+                return None
+            per_task[run["task"]] = per_task.get(run["task"], 0) + 1
+        seed = int(manifest["seed"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    if len(set(per_task.values())) != 1:
+        return None
+    if set(per_task) == set(DEMONSTRATED):
+        task = "all"
+    elif len(per_task) == 1:
+        task = next(iter(per_task))
+    else:
+        return None
+    return {"task": task, "runs": next(iter(per_task.values())), "seed": seed}

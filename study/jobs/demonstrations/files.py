@@ -66,6 +66,7 @@ class Demonstrations:
     run: np.ndarray  # (n,) int index into ``runs``
     task: np.ndarray  # (n,) str true task type (evaluation only)
     target: np.ndarray  # (n,) str id of the demonstrated component
+    phase: np.ndarray  # (n,) str the demonstrator's phase: "approach", then the task's own
     cand_offsets: np.ndarray  # (n + 1,) int: tick i's candidates are [off[i], off[i+1])
     cand_points: np.ndarray  # (m, 2) [m] target points of all candidates, robot frame
     cand_ids: np.ndarray  # (m,) str
@@ -230,6 +231,7 @@ def load_demonstrations(directory: str | Path, *, moving_only: bool = True) -> D
         run=cat("run", (0,), np.int64),
         task=cat("task", (0,), str),
         target=cat("target", (0,), str),
+        phase=cat("phase", (0,), str),
         cand_offsets=offsets,
         cand_points=cat("cand_points", (0, 2), float),
         cand_ids=cat("cand_ids", (0,), str),

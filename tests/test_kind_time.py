@@ -1,0 +1,165 @@
+"""The kind-and-time recogniser (autonomy.kind_time, autonomy.intent_prior; issue 40):
+its prior learnt from demonstrations, its filter over time, its decisive blend weight,
+and the contextual mode's recogniser setting."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from autonomy.contextual import ContextualSettings, ContextualTaskMode
+from autonomy.intent_prior import KIND_CLASS, RANKS, IntentPrior, fit_intent_prior
+from autonomy.kind_time import KindTimeRecogniser, KindTimeSettings
+from autonomy.modes import make_mode
+
+# two primitives: 0 demonstrated at passages (executed close), 1 along walls (at 0.6 m)
+CLASSES = np.array([0, 1])
+
+
+def _prior(rng, n=600):
+    labels = rng.integers(0, 2, n)
+    kind = np.where(labels == 0, "doorway", "wall")
+    executing = rng.random(n) < 0.6
+    distance = np.where(
+        executing,
+        np.where(labels == 0, rng.lognormal(math.log(0.3), 0.5, n), rng.lognormal(-0.5, 0.1, n)),
+        rng.lognormal(0.4, 0.4, n),
+    )
+    rank = np.minimum(rng.geometric(0.6, n) - 1, 12)
+    return fit_intent_prior(labels, distance, executing, kind, rank)
+
+
+def test_the_prior_is_learnt_from_kinds_distances_and_ranks(rng):
+    prior = _prior(rng)
+    for shares in prior["kind_share"].values():
+        assert math.isclose(sum(shares), 1.0, abs_tol=1e-5) and min(shares) > 0
+    assert prior["kind_share"]["0"][KIND_CLASS["doorway"]] > 0.9
+    assert prior["kind_share"]["1"][KIND_CLASS["wall"]] > 0.9
+    mean_wall = prior["execution_log_distance"]["1"][0]
+    assert abs(mean_wall - (-0.5)) < 0.05  # the executed wall distances' log mean
+    assert math.isclose(sum(prior["rank"]), 1.0, abs_tol=1e-5) and len(prior["rank"]) == RANKS
+    assert prior["rank"][0] > prior["rank"][1] > prior["rank"][2]
+    arrays = IntentPrior.from_metadata({"intent_prior": prior}, CLASSES[::-1])
+    assert arrays.learnt and arrays.log_kind.shape == (2, 3)
+    assert arrays.exec_mean[0] == pytest.approx(mean_wall)  # aligned with the classes
+    neutral = IntentPrior.from_metadata({}, CLASSES)
+    assert not neutral.learnt and np.allclose(np.exp(neutral.log_kind).sum(axis=1), 1.0)
+
+
+def _recogniser(rng, **settings):
+    prior = IntentPrior.from_metadata({"intent_prior": _prior(rng)}, CLASSES)
+    return KindTimeRecogniser(prior, KindTimeSettings(**settings))
+
+
+def _tick(rec, favour, u=(0.6, 0.0, 0.0)):
+    """A doorway 'd' ahead and a wall 'w' beside, 0.4 m each; the SOGP favours ``favour``
+    (its passage primitive for 'd', its wall primitive for 'w')."""
+    mean = (
+        np.array([[1.0, -1.0], [-1.0, -1.0]])
+        if favour == "d"
+        else np.array([[-1.0, -1.0], [-1.0, 1.0]])
+    )
+    targets = np.array([[0.4, 0.0], [0.0, 0.4]])
+    normals = np.array([[1.0, 0.0], [0.0, 0.0]])
+    return rec(mean, ["d", "w"], ["doorway", "wall"], targets, normals, np.array(u))
+
+
+def test_a_decisive_recognition_engages_and_persists_but_recovers(rng):
+    rec = _recogniser(rng)
+    first = _tick(rec, "d")
+    found = [_tick(rec, "d") for _ in range(20)]
+    assert all(f.candidate == 0 and f.primitive == 0 for f in found)
+    assert found[-1].beta >= rec.settings.engage and found[-1].posterior < 1.0
+    assert found[-1].posterior >= first.posterior  # evidence accumulates
+    flipped = [_tick(rec, "w") for _ in range(40)]
+    assert flipped[0].candidate == 0  # one tick of other evidence does not flip it
+    assert flipped[-1].candidate == 1  # sustained evidence does: never certain
+    for f in flipped:
+        assert 0.0 <= f.posterior <= 1.0
+        assert f.beta == 0.0 or f.beta >= rec.settings.engage
+
+
+def test_idling_decays_towards_uniform_and_contradiction_lowers_belief(rng):
+    rec = _recogniser(rng)
+    for _ in range(20):
+        _tick(rec, "d")
+    before = dict(rec.belief_)
+    rec.contradict("d")
+    assert rec.belief_["d"] < before["d"]
+    assert math.isclose(sum(rec.belief_.values()), 1.0)
+    for _ in range(400):
+        rec.idle()
+    values = np.array(list(rec.belief_.values()))
+    assert np.allclose(values, 1.0 / len(values), atol=1e-6)
+    rec.reset()
+    assert rec.belief_ == {}
+
+
+def test_nothing_near_means_no_assistance(rng):
+    rec = _recogniser(rng)
+    far = np.array([[6.0, 0.5], [0.3, 7.0]])
+    for _ in range(30):
+        found = rec(
+            np.array([[-0.5, -1.0], [-1.0, -0.5]]),
+            ["d", "w"],
+            ["doorway", "wall"],
+            far,
+            np.zeros((2, 2)),
+            np.array([0.5, 0.0, 0.0]),
+        )
+        assert found.beta == 0.0
+    assert rec(np.zeros((0, 2)), [], [], np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(3)) == (
+        found.__class__(-1, -1, 0.0, 0.0, 0.0)
+    )
+
+
+def test_the_recogniser_setting(tmp_path):
+    with pytest.raises(ValueError, match="recogniser: must be one of kind_time, thesis, oracle, none"):
+        ContextualSettings(recogniser="oracle-ish")
+    with pytest.raises(ValueError, match=r"kind_time\.stay: must be a number in \[0, 1\]"):
+        KindTimeSettings(stay=1.5)
+    mode = make_mode("contextual_task", recogniser="thesis", kind_time={"engage": 0.9})
+    assert mode.settings.recogniser == "thesis" and mode.intent_ is None
+    assert mode.settings_dict()["kind_time"]["engage"] == 0.9
+    assert ContextualTaskMode().settings.recogniser == "kind_time"
+
+
+@pytest.mark.parametrize("recogniser", ["oracle", "none"])
+def test_the_ablations_in_a_trial(tmp_path, rng, recogniser):
+    """The oracle assists on the true target only (so every assisted tick is right); no
+    recognition never assists."""
+    from study.engine.standalone import standalone_trial
+    from study.participants.synthetic import synthetic_participant
+
+    result, engine = standalone_trial(
+        tmp_path,
+        synthetic_participant(rng),
+        mode="contextual_task",
+        mode_settings={"recogniser": recogniser},
+        scenario="demo_docking",
+        timeout_s=30.0,
+    )
+    engine.dispose()
+    rec = result.outcome["recognition"]
+    assert result.outcome["mode_settings"]["recogniser"] == recogniser
+    if recogniser == "none":
+        assert rec["assist"]["assist_all_ticks"] == 0
+    else:
+        assert rec["assist"]["assist_all_ticks"] > 0 and rec["assist_precision"] == 1.0
+        assert rec["confident_wrong_s"] == 0.0
+
+
+def test_the_oracle_is_refused_for_other_participants(tmp_path, rng):
+    from study.engine.standalone import standalone_trial
+    from study.participants.scripted import ScriptedParticipant
+
+    with pytest.raises(ValueError, match="only synthetic participants have"):
+        standalone_trial(
+            tmp_path,
+            ScriptedParticipant(rng),
+            mode="contextual_task",
+            mode_settings={"recogniser": "oracle"},
+            timeout_s=2.0,
+        )
