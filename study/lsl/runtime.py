@@ -19,8 +19,9 @@ NO_LIBLSL = (
 )
 # liblsl's own configuration files, in the order it reads them (after $LSLAPICFG)
 CONFIG_FILES = ("lsl_api.cfg", "~/lsl_api/lsl_api.cfg", "/etc/lsl_api/lsl_api.cfg")
-# without a configuration of the lab's, liblsl's log stays off the experimenter's terminal
-QUIET_CONFIG = "[log]\nlevel = -3\n"
+# without a configuration of the lab's: this machine only (streams are found and offered
+# on this host, nothing multicast beyond it), liblsl's log off the experimenter's terminal
+DEFAULT_CONFIG = "[multicast]\nResolveScope = machine\n[log]\nlevel = -3\n"
 _configured = False
 
 NO_PYXDF = "XDF: pyxdf is not installed; install the extra: pip install -e '.[lsl]'"
@@ -42,8 +43,9 @@ def pylsl() -> ModuleType:
 
 def _configure(module: ModuleType) -> None:
     """Once per process, before liblsl reads its configuration: a lab's configuration
-    (``$LSLAPICFG`` or liblsl's files) is used as it is; without one, liblsl's defaults
-    with its log level at fatal errors only."""
+    (``$LSLAPICFG`` or liblsl's files) is used as it is; without one,
+    :data:`DEFAULT_CONFIG`: liblsl's defaults with the resolve scope this machine and the
+    log level at fatal errors only."""
     global _configured
     if _configured:
         return
@@ -51,7 +53,7 @@ def _configure(module: ModuleType) -> None:
     if os.environ.get("LSLAPICFG") or any(Path(f).expanduser().is_file() for f in CONFIG_FILES):
         return
     try:
-        module.set_config_content(QUIET_CONFIG)
+        module.set_config_content(DEFAULT_CONFIG)
     except (AttributeError, RuntimeError):  # a liblsl older than 1.16: its defaults
         pass
 
