@@ -21,7 +21,7 @@ import jinja2
 import pandas as pd
 from markupsafe import Markup
 
-from analysis import crashes
+from analysis import crashes, lab_streams
 from analysis import figures as fig
 from analysis.data import BASELINE, AnalysisConfig, Frames, StudyData, load_study, tidy
 from analysis.methods import methods, methods_markdown
@@ -323,6 +323,7 @@ def build_report(
     say("figures: TLX profile, clearance, paths")
     extra = _extra_figures(data, frames, out, written)
     crash = _crashes(data, frames, out, written) if data.config.end_on_collision else None
+    lab = _lab_streams(data, out, written)
     results_json = out / "results.json"
     stored = results if recognition is None else {**results, "recognition": recognition}
     results_json.write_text(json.dumps(stored, indent=1, allow_nan=False), encoding="utf-8")
@@ -330,7 +331,7 @@ def build_report(
     (out / "methods.md").write_text(methods_markdown(section), encoding="utf-8")
     html = _render_html(
         data, frames, positions, orders, sections, skipped, extra, recognition, section, crash,
-        table1=table1,
+        table1=table1, lab=lab,
     )  # fmt: skip
     html_path = out / "report.html"
     html_path.write_text(html, encoding="utf-8")
@@ -486,6 +487,29 @@ def _crashes(data: StudyData, frames: Frames, out: Path, written: _Written) -> d
     }
 
 
+def _lab_streams(data: StudyData, out: Path, written: _Written) -> dict | None:
+    """The lab's streams per participant and trial (``tables/lab_streams.csv``) and one
+    channel over a trial with its events (:mod:`analysis.lab_streams`); None without."""
+    described = lab_streams.describe(data.tables)
+    if described is None:
+        return None
+    table, drawn = described
+    written.csv(table, out / "tables" / "lab_streams.csv")
+    shown = table.astype(object).assign(
+        rate_hz=[_cell(v, 1) for v in table["rate_hz"]],
+        gap_s=[_cell(v, 3) for v in table["gap_s"]],
+        offset_spread_ms=[_cell(v, 3) for v in table["offset_spread_ms"]],
+    )
+    figure = None
+    if drawn is not None:
+        figure = _extra(written, drawn[0], out / "figures", "lab_stream_channel", drawn[1])
+    return {"rows": shown.to_dict("records"), "figure": figure}
+
+
+def _cell(value: float, digits: int) -> str:
+    return "" if pd.isna(value) else f"{value:.{digits}f}"
+
+
 def _extra(written: _Written, figure, folder: Path, stem: str, title: str) -> dict:
     png, svg, text = written.figure(figure, folder, stem)
     return {"title": title, "svg": Markup(text), "png_name": png.name, "svg_name": svg.name}
@@ -504,6 +528,7 @@ def _render_html(
     crash: dict | None = None,
     *,
     table1: pd.DataFrame,
+    lab: dict | None = None,
 ) -> str:
     """``templates/report.html.j2`` rendered with the study's values."""
     counted = set(frames.trials["participant"])
@@ -546,6 +571,7 @@ def _render_html(
         zip=zip,
         methods=section,
         crash=crash,
+        lab=lab,
         warnings=all_warnings,
         aborted=frames.aborted.to_dict("records"),
         incomplete=incomplete.to_dict("records"),

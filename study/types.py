@@ -79,6 +79,7 @@ class TickRecord:
     in_region: bool  # true pose inside the question region
     true_task: str = ""  # ground truth from the participant's ``intention()``
     true_target: str = ""
+    lsl_clock_s: float | None = None  # [s] LSL local_clock() when the tick happened
 
     def row(self, trial_id: int) -> dict[str, object]:
         """Column values of the ``sample`` table for this tick.
@@ -109,4 +110,5 @@ class TickRecord:
             "in_region": self.in_region,
             "true_task": self.true_task,
             "true_target": self.true_target,
+            "lsl_clock_s": self.lsl_clock_s,
         }

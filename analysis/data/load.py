@@ -28,6 +28,9 @@ TABLES: tuple[str, ...] = (
     "response",
 )
 
+# the lab's recorded streams (revision 0004): read where the database or folder has them
+OPTIONAL_TABLES: tuple[str, ...] = ("lsl_stream", "lsl_chunk", "lsl_offset", "lsl_gap")
+
 # [analysis] timeouts: a timed-out main trial's completion time and score are missing
 # ("exclude") or the time limit, a right-censored value ("censor"); docs/decisions.md
 TIMEOUTS: tuple[str, ...] = ("exclude", "censor")
@@ -102,7 +105,8 @@ class StudyData:
     source : the database or folder read.
     study : {name, protocol_text, protocol_sha256, platform_version, seed}.
     config : the protocol's analysis settings.
-    tables : table name -> DataFrame with the storage columns (see :data:`TABLES`).
+    tables : table name -> DataFrame with the storage columns (see :data:`TABLES`; and
+        :data:`OPTIONAL_TABLES` where the source has them).
     """
 
     source: str
@@ -178,7 +182,7 @@ def _config(doc: dict[str, Any], source: str) -> AnalysisConfig:
 
 
 def _read_db(db: Path | str) -> dict[str, pd.DataFrame]:
-    from sqlalchemy import text
+    from sqlalchemy import inspect, text
     from sqlalchemy.exc import DatabaseError
 
     from study.data.storage import open_database
@@ -190,7 +194,8 @@ def _read_db(db: Path | str) -> dict[str, pd.DataFrame]:
     try:
         tables: dict[str, pd.DataFrame] = {}
         with engine.connect() as conn:
-            for name in TABLES:
+            present = set(inspect(conn).get_table_names())
+            for name in TABLES + tuple(t for t in OPTIONAL_TABLES if t in present):
                 tables[name] = pd.read_sql_query(text(f'SELECT * FROM "{name}" ORDER BY id'), conn)
     except DatabaseError as error:
         raise ValueError(f"{db}: cannot read the study tables ({error.orig})") from error
@@ -201,7 +206,8 @@ def _read_db(db: Path | str) -> dict[str, pd.DataFrame]:
 
 def _read_csv_folder(folder: Path) -> dict[str, pd.DataFrame]:
     tables = {}
-    for name in TABLES:
+    optional = tuple(t for t in OPTIONAL_TABLES if (folder / f"{t}.csv").is_file())
+    for name in TABLES + optional:
         path = folder / f"{name}.csv"
         if not path.is_file():
             raise ValueError(
@@ -211,6 +217,11 @@ def _read_csv_folder(folder: Path) -> dict[str, pd.DataFrame]:
         text_cols = {c: str for c in _TEXT.get(name, ()) + _JSON.get(name, ())}
         if name == "study":
             text_cols.update(protocol_text=str, protocol_sha256=str, name=str)
+        if name == "lsl_chunk":  # the samples as base64 text (asa export)
+            text_cols.update(timestamps=str, data=str)
+        if name == "lsl_stream":
+            text_cols.update(name=str, type=str, source_id=str, hostname=str, channels=str,
+                             info_xml=str, source=str, dtype=str, channel_format=str)  # fmt: skip
         try:
             tables[name] = pd.read_csv(path, dtype=text_cols, keep_default_na=False, na_values=[""])
         except (pd.errors.ParserError, UnicodeDecodeError) as error:

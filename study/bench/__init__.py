@@ -33,6 +33,7 @@ GROUPS: dict[str, str] = {
     "storage": "study.bench.storage",
     "power": "study.bench.power",
     "push": "study.bench.push",
+    "lsl": "study.bench.lsl",
 }
 
 

@@ -72,6 +72,12 @@ BUDGETS: tuple[Budget, ...] = (
     # server takes at least the 8 sessions of the concurrency test, every batch in 1 s
     Budget("storage", "storage_postgresql_concurrent_sessions", ">=", 8),
     Budget("storage", "storage_sqlite_concurrent_sessions", ">=", 8),
+    # the lab's clock (issue 38): a marker on loopback, the lab's streams recorded beside a
+    # 20 Hz session without loss (4 x 500 Hz x 8 channels: 2,000 samples/s), its ticks
+    Budget("lsl", "lsl_marker_latency_ms.p99", "<", 5.0),
+    Budget("lsl", "lsl_lost_samples", "<=", 0),
+    Budget("lsl", "lsl_recorded_samples_per_s", ">=", 1980.0),
+    Budget("lsl", "lsl_jitter_p99_delta_ms", "<=", 1.0),
 )
 
 

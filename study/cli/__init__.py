@@ -70,7 +70,14 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "study.cli.db:db",
         "Study database tools: check, diff, upgrade, push a site's database.",
     ),
-    "export": ("study.cli.export:export_command", "Write one CSV per database table."),
+    "export": (
+        "study.cli.export:export_command",
+        "Write one CSV per database table (--aligned: the lab's streams on one clock).",
+    ),
+    "xdf": (
+        "study.cli.xdf:xdf",
+        "LabRecorder's XDF files: import one, aligned with the trials by the markers.",
+    ),
     "report": (
         "study.cli.report:report_command",
         "The study report: HTML with figures and statistics, tables, results.json.",

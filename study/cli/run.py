@@ -88,6 +88,14 @@ SCREEN_STATUS_EVERY_S = 1.0  # [s] wall time between the screen's status lines
     "multi-site study) [default: $ASA_SITE].",
 )
 @click.option(
+    "--lsl",
+    "lsl",
+    is_flag=True,
+    help="Lab Streaming Layer on, also for a protocol without [lsl]: the event and state "
+    "outlets, and the lab's streams the protocol's [[lsl.record]] names. Needs pylsl: "
+    "pip install -e '.[lsl]'.",
+)
+@click.option(
     "--machine",
     default=None,
     help="The machine's name recorded with the session [default: $ASA_MACHINE, else the host "
@@ -106,6 +114,7 @@ def run(
     fast: bool,
     site: str | None,
     machine: str | None,
+    lsl: bool,
 ) -> None:
     """Run one participant through every phase of a protocol and store it in --db.
 
@@ -122,6 +131,7 @@ def run(
       asa run --protocol pilot --participant P01 --db pilot.db --resume   # after a crash
       asa run --protocol multisite.toml --participant LYON-07 --site lyon \\
           --db postgresql://asa@db.example.org/study --input human
+      asa run --protocol pilot --participant P01 --db pilot.db --input human --lsl
     """
     from study.cli.terminal import ExperimenterTerminal
     from study.engine.launch import run_participant
@@ -146,6 +156,7 @@ def run(
             headless=headless, snapshots=snapshots, fast=fast, progress=terminal.line,
             status=terminal.status, on_tick=terminal.on_tick,
             status_every_s=SCREEN_STATUS_EVERY_S, place=Place.given(site, machine),
+            lsl=True if lsl else None,
         )  # fmt: skip
     except BaseException as error:
         terminal.close()

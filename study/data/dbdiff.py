@@ -40,6 +40,8 @@ WALL_CLOCK_COLUMNS = frozenset(
         "platform_version",
         "machine",
         "uid",
+        "lsl_clock_s",
+        "received_clock_s",
     }
 )
 MAX_SHOWN = 5  # differing rows shown per table

@@ -18,6 +18,7 @@ columns in the table's order, JSON columns as JSON text, times in ISO 8601, NULL
 
 from __future__ import annotations
 
+import base64
 import contextlib
 import csv
 import datetime as dt
@@ -404,6 +405,10 @@ def remove_recordings_of(db: str | Path) -> list[Path]:
 # ------------------------------------------------------------------------- export
 
 
+def _has_rows(conn: Any, table: Any) -> bool:
+    return conn.execute(select(table.c.id).limit(1)).first() is not None
+
+
 def _cell(value: Any, is_json: bool) -> str:
     if value is None:
         return ""
@@ -415,6 +420,8 @@ def _cell(value: Any, is_json: bool) -> str:
         return "true" if value else "false"
     if isinstance(value, float):
         return repr(value) if math.isfinite(value) else ""
+    if isinstance(value, bytes):  # the lab's samples (lsl_chunk): base64 text
+        return base64.b64encode(value).decode("ascii")
     return str(value)
 
 
@@ -449,6 +456,8 @@ def export(db: str | Path, out: str | Path, *, force: bool = False) -> dict[str,
             for table in Base.metadata.sorted_tables:
                 if table.name not in present:
                     continue  # order_slot in a database made before issue 20
+                if table.name.startswith("lsl_") and not _has_rows(conn, table):
+                    continue  # the lab's streams: only in a study that recorded some
                 columns = list(table.columns)
                 json_cols = [isinstance(c.type, JSON) for c in columns]
                 n = 0

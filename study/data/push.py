@@ -215,7 +215,7 @@ def _read_source(src: str | Path) -> tuple[dict[str, Any], dict[str, PersonRows]
             studies = table_rows(conn, "study")
             if not studies:
                 raise ValueError(f"{src}: holds no study; nothing to push")
-            return studies[0], read_people(conn)
+            return studies[0], read_people(conn, lsl=True)
     finally:
         engine.dispose()
 

@@ -15,7 +15,7 @@ from __future__ import annotations
 import hashlib
 from array import array
 from collections import defaultdict
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 from sqlalchemy import Boolean, Float, Integer
@@ -57,6 +57,8 @@ class PersonRows:
     questions: list[dict[str, Any]]
     responses: list[dict[str, Any]]
     samples: dict[int, list[tuple[Any, ...]]]  # trial id -> sample tuples (without id)
+    # the lab's streams of its sessions: table name -> rows (read for a push's source only)
+    lsl: dict[str, list[dict[str, Any]]] = field(default_factory=dict)
 
     def trial_keys(self) -> dict[int, TrialKey]:
         """Trial id -> its key within its session."""
@@ -74,9 +76,12 @@ class PersonRows:
         return [r for r in self.sessions if r["status"] == "running" or r["id"] in busy]
 
 
-def read_people(conn: Connection, codes: list[str] | None = None) -> dict[str, PersonRows]:
+def read_people(
+    conn: Connection, codes: list[str] | None = None, *, lsl: bool = False
+) -> dict[str, PersonRows]:
     """The participants of the database on ``conn`` (those of ``codes``, else all) by
-    code, in id order, each with all its rows."""
+    code, in id order, each with all its rows (with ``lsl``, also the lab's streams of
+    its sessions: :func:`lsl_rows`)."""
     people = table_rows(conn, "participant", _within("code", codes))
     if not people:
         return {}
@@ -109,7 +114,19 @@ def read_people(conn: Connection, codes: list[str] | None = None) -> dict[str, P
             questions=[q for q in questions if q["trial_id"] in {t["id"] for t in own}],
             responses=[r for r in responses if r["participant_id"] == p["id"]],
             samples={t["id"]: samples.get(t["id"], []) for t in own},
+            lsl=lsl_rows(conn, sorted(mine)) if lsl else {},
         )
+    return out
+
+
+def lsl_rows(conn: Connection, session_ids: list[int]) -> dict[str, list[dict[str, Any]]]:
+    """The lab's recorded or imported streams of ``session_ids`` and their chunks, offsets
+    and gaps (revision 0004), in id order."""
+    streams = table_rows(conn, "lsl_stream", _within("session_id", session_ids))
+    ids = [r["id"] for r in streams]
+    out = {"lsl_stream": streams}
+    for name in ("lsl_chunk", "lsl_offset", "lsl_gap"):
+        out[name] = table_rows(conn, name, _within("stream_id", ids)) if ids else []
     return out
 
 

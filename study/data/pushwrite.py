@@ -70,7 +70,28 @@ def _write_sessions(conn: Connection, pid: int, plan: Plan, folders: Folders) ->
     questions = [{**q, "trial_id": trial_ids[q["trial_id"]]}
                  for q in rows.questions if q["trial_id"] in trial_ids]  # fmt: skip
     bulk_insert(conn, "question", questions)
+    _write_lsl(conn, rows.lsl, session_ids, trial_ids)
     return trial_ids
+
+
+def _write_lsl(
+    conn: Connection,
+    lsl: dict[str, list[dict[str, Any]]],
+    session_ids: dict[int, int],
+    trial_ids: dict[int, int],
+) -> None:
+    """The lab's streams of the written sessions, with their chunks, offsets and gaps."""
+    stream_ids = {
+        r["id"]: insert_row(conn, "lsl_stream", {**r, "session_id": session_ids[r["session_id"]]})
+        for r in lsl.get("lsl_stream", [])
+        if r["session_id"] in session_ids
+    }
+    for name in ("lsl_chunk", "lsl_offset", "lsl_gap"):
+        rows = [{**r, "stream_id": stream_ids[r["stream_id"]]}
+                for r in lsl.get(name, []) if r["stream_id"] in stream_ids]  # fmt: skip
+        if name == "lsl_gap":
+            rows = [{**r, "trial_id": trial_ids.get(r["trial_id"])} for r in rows]
+        bulk_insert(conn, name, rows)
 
 
 def _recording(path: str, folders: Folders) -> str:
@@ -97,6 +118,10 @@ def _delete_session(conn: Connection, session_id: int) -> None:
         conn.execute(select(t["trial"].c.id).where(t["trial"].c.session_id == session_id))
         .scalars()
     )  # fmt: skip
+    streams = select(t["lsl_stream"].c.id).where(t["lsl_stream"].c.session_id == session_id)
+    for name in ("lsl_chunk", "lsl_offset", "lsl_gap"):
+        conn.execute(delete(t[name]).where(t[name].c.stream_id.in_(streams)))
+    conn.execute(delete(t["lsl_stream"]).where(t["lsl_stream"].c.session_id == session_id))
     for name in ("sample", "question", "response"):
         conn.execute(delete(t[name]).where(t[name].c.trial_id.in_(tids)))
     conn.execute(delete(t["event"]).where(t["event"].c.session_id == session_id))

@@ -10,7 +10,9 @@ seed), ``participant`` (pseudonymous code, synthetic parameters, mode order), ``
 status, times, outcome), ``sample`` (one per control tick), ``event`` (with a JSON
 ``detail``), ``question`` (one per secondary-task question), ``response``
 (questionnaire answers, NASA-TLX pairwise choices as items ``pair:<a>|<b>``) and
-``order_slot`` (the counterbalancing ledger: every order slot issued, :mod:`study.data.ledger`).
+``order_slot`` (the counterbalancing ledger: every order slot issued, :mod:`study.data.ledger`);
+the lab's recorded streams ``lsl_stream``, ``lsl_chunk``, ``lsl_offset``, ``lsl_gap``
+(:mod:`study.data.lsl_tables`, re-exported here).
 """
 
 from __future__ import annotations
@@ -58,7 +60,7 @@ from study.data.schema import check_revision, stamp_head
 
 # kept equal to the Alembic head's number in meta.schema_version, which older platform
 # versions and dbfile.probe read (study.data.schema; docs/decisions.md)
-SCHEMA_VERSION = 3
+SCHEMA_VERSION = 4
 # the advisory lock key of a study database's write lock on PostgreSQL (one study per
 # database, so one key: "asastudy" in ASCII as a bigint; study.data.ledger.lock_study)
 PG_STUDY_LOCK = int.from_bytes(b"asastudy", "big") & 0x7FFF_FFFF_FFFF_FFFF
@@ -235,6 +237,9 @@ class Sample(Base):
     in_region: Mapped[bool] = mapped_column(Boolean)
     true_task: Mapped[str] = mapped_column(String(32), default="")  # synthetic ground truth
     true_target: Mapped[str] = mapped_column(String(64), default="")
+    # [s] the session machine's LSL local_clock() when the tick happened (revision 0004;
+    # None without LSL)
+    lsl_clock_s: Mapped[float | None] = mapped_column(Float)
 
 
 class Event(Base):
@@ -579,3 +584,7 @@ def _open_server(db: str | Path, url: str, create: bool, *, write: bool) -> Engi
 def get_study(session: Session) -> Study | None:
     """The study row of a database (one study per database), or None if empty."""
     return session.scalars(select(Study).order_by(Study.id)).first()
+
+
+# the lab's streams (revision 0004): defined beside, mapped on the same metadata
+from study.data.lsl_tables import LslChunk, LslGap, LslOffset, LslStream  # noqa: E402, F401

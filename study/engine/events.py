@@ -43,9 +43,16 @@ class TrialWriter:
     for tests and diagnostics.
     """
 
-    def __init__(self, engine: Engine, session_id: int) -> None:
+    def __init__(
+        self,
+        engine: Engine,
+        session_id: int,
+        listener: Callable[[float, str, dict[str, Any]], None] | None = None,
+    ) -> None:
         self.engine = engine
         self.session_id = session_id
+        # told of every event buffered, ``(t, kind, detail)`` (the session's LSL markers)
+        self.listener = listener
         self.trial_id = -1
         self.recording_path = ""
         self.samples: list[dict[str, Any]] = []
@@ -76,6 +83,8 @@ class TrialWriter:
         return self.trial_id
 
     def event(self, t: float, kind: str, **detail: Any) -> None:
+        if self.listener is not None:
+            self.listener(t, kind, detail)
         self.events.append(
             {
                 "session_id": self.session_id,

@@ -50,6 +50,7 @@ def run_participant(
     on_tick: Callable[[int, TrialWriter], None] | None = None,
     status_every_s: float = 5.0,
     place: Place | None = None,
+    lsl: bool | None = None,
 ) -> SessionSummary:
     """Run (or resume) participant ``code``'s session of ``protocol`` in ``db``.
 
@@ -82,6 +83,9 @@ def run_participant(
     place : Place, optional
         The site and machine (:class:`study.engine.sites.Place`); default no site, this
         host.
+    lsl : bool, optional
+        True: the LSL outlets even without the protocol's ``[lsl]`` (``--lsl``); None: as
+        the protocol says (:func:`study.engine.session.run_session`).
 
     Returns
     -------
@@ -98,12 +102,12 @@ def run_participant(
             participant = decider(input_kind, seed)
             return run_session(
                 p, code, db, participant=participant, seed=seed, resume=resume, force=force,
-                progress=progress, control=control, on_tick=on_tick, place=place,
+                progress=progress, control=control, on_tick=on_tick, place=place, lsl=lsl,
             )  # fmt: skip
         return _on_screen(
             p, code, db, input_kind, seed, resume=resume, force=force, headless=headless,
             snapshots=snapshots, fast=fast, progress=progress, status=status, on_tick=on_tick,
-            control=control, status_every_s=status_every_s, place=place,
+            control=control, status_every_s=status_every_s, place=place, lsl=lsl,
         )  # fmt: skip
 
 
@@ -125,6 +129,7 @@ def _on_screen(
     control: ExperimenterControl,
     status_every_s: float,
     place: Place | None,
+    lsl: bool | None,
 ) -> SessionSummary:
     """The session on the participant's screen (the camera image it shows is recorded)."""
     if headless:
@@ -156,6 +161,7 @@ def _on_screen(
             clock=FreeClock() if fast else person.clock(),
             on_tick=on_tick,
             place=place,
+            lsl=lsl,
         )
     finally:
         person.close()

@@ -9,7 +9,7 @@ import tempfile
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from sqlalchemy import func, select
@@ -61,6 +61,9 @@ from study.engine.trial import (
 )
 from study.participants.base import Participant as SessionParticipant
 from tasks.primary import PrimarySettings, route_from_points
+
+if TYPE_CHECKING:
+    from study.lsl.session import SessionLsl
 
 NO_LEARNING = "the participant does not learn (participant.learns is False)"
 _PHASE_INDEX = {"training": 1, "practice": 2, "baseline": 3, "main": 4}
@@ -155,8 +158,10 @@ class SessionRunner:
         on_tick: Callable[[int, TrialWriter], None] | None,
         recordings: Path | None,
         record: bool = True,
+        lsl: SessionLsl | None = None,
     ) -> None:
         self.protocol = protocol
+        self.lsl = lsl  # the session's LSL markers, state and recorder (study.lsl)
         self.engine = engine
         self.participant = participant
         self.person_id = person.id
@@ -211,6 +216,8 @@ class SessionRunner:
     ) -> None:
         detail = {"phase": kind, **({"skipped": skipped} if skipped else {})}
         self._store(responses, "phase_done", detail)
+        if self.lsl is not None:
+            self.lsl.session_event("phase_done", **detail)
 
     def _store(
         self, rows: Sequence[Response], kind: str, detail: dict, trial_id: int | None = None
@@ -269,6 +276,7 @@ class SessionRunner:
             control=self.control,
             on_tick=self.on_tick,
             max_collisions=max_collisions,
+            lsl=self.lsl,
         )
         out = result.outcome
         summary = TrialSummary(
@@ -483,10 +491,15 @@ class SessionRunner:
 
     def run(self) -> str:
         """Every phase in order; returns the session's final status."""
+        lsl = self.lsl
+        if lsl is not None:
+            lsl.session_event("session_started", session=self.session_id)
         for phase in self.protocol.phases:
             handler = _PHASES.get(type(phase))
             if handler is None:
                 continue
+            if lsl is not None:
+                lsl.session_event("phase_started", phase=phase.kind)
             outcome = handler(self, phase)
             if outcome is None:
                 self._end("aborted", "excluded: a practice was not passed within the attempts")
@@ -505,6 +518,8 @@ class SessionRunner:
             row.ended_at = utc_now()
             if note:
                 row.note = f"{row.note}; {note}" if row.note else note
+        if self.lsl is not None:
+            self.lsl.session_event("session_ended", session=self.session_id, status=status)
         self.progress(f"{self.code} session {status}" + (f" ({note})" if note else ""))
 
 

@@ -39,6 +39,7 @@ from study.engine.resume import resume_plan, session_state
 from study.engine.runner import SessionRunner, TrialSummary, derive_seed
 from study.engine.sites import Place, check_participant_site, check_site
 from study.engine.trial import ExperimenterControl, FreeClock, TrialWriter, WallClock
+from study.lsl.session import LslPlan
 from study.participants.base import Participant as SessionParticipant
 
 __all__ = [
@@ -401,6 +402,8 @@ def run_session(
     slot: int | None = None,
     lock: bool = True,
     place: Place | None = None,
+    lsl: bool | None = None,
+    lsl_record: bool = True,
 ) -> SessionSummary:
     """Run (or resume) one participant's session of ``protocol`` and store everything.
 
@@ -450,6 +453,11 @@ def run_session(
         Where the session runs: the site (required, and one of the study's, in a study
         with sites; the participant's site for all its sessions) and the machine; default
         no site and this host's name.
+    lsl : bool, optional
+        Lab Streaming Layer (:mod:`study.lsl`): None follows the protocol's ``[lsl]``; True
+        opens the event and state outlets even without one; False none.
+    lsl_record : bool
+        False: the protocol's ``[[lsl.record]]`` streams are not recorded (outlets only).
 
     Returns
     -------
@@ -461,7 +469,8 @@ def run_session(
         A bad participant code, a database not ours or made with another protocol, study
         seed or platform version, a second session without ``force``, nothing to resume,
         the participant's session running in another process, a missing or unknown site
-        or another site than the participant's.
+        or another site than the participant's; LSL asked for without pylsl or liblsl, or
+        a required stream of the lab's not on the network (before anything is started).
     """
     code = check_code(participant_code)
     human = participant.kind == "human"
@@ -475,10 +484,13 @@ def run_session(
         record=record,
     )
     where = place if place is not None else Place()
+    plan = LslPlan.of(protocol.lsl, enable=lsl, record=lsl_record)
+    found = plan.check() if plan is not None else []  # before anything is started
     with _session_lock(db, code, lock):
         return _run_locked(
-            protocol, code, db, participant, seed, resume, force, durable, slot, where, options
-        )
+            protocol, code, db, participant, seed, resume, force, durable, slot, where, options,
+            (plan, found),
+        )  # fmt: skip
 
 
 def _camera_hz(protocol: Protocol, participant: SessionParticipant) -> float:
@@ -531,6 +543,7 @@ def _run_locked(
     slot: int | None,
     place: Place,
     options: _RunOptions,
+    lsl: tuple[LslPlan | None, list],
 ) -> SessionSummary:
     """:func:`run_session` once the session's lock is held."""
     engine = open_database(db, durable=durable)
@@ -539,16 +552,25 @@ def _run_locked(
             engine, protocol, code, db, participant,
             seed=seed, resume=resume, force=force, slot=slot, place=place,
         )  # fmt: skip
-        runner = SessionRunner(
-            protocol,
-            engine,
-            db,
-            participant,
-            _checked(opened, protocol, db),
-            opened.session_id,
-            **{f.name: getattr(options, f.name) for f in dataclasses.fields(options)},
-        )
-        return _run(runner, code, opened)
+        person = _checked(opened, protocol, db)
+        plan, found = lsl
+        with contextlib.ExitStack() as stack:
+            link = None
+            if plan is not None:
+                link = stack.enter_context(
+                    plan.started(engine, opened.session_id, code, place.machine, found)
+                )
+            runner = SessionRunner(
+                protocol,
+                engine,
+                db,
+                participant,
+                person,
+                opened.session_id,
+                lsl=link,
+                **{f.name: getattr(options, f.name) for f in dataclasses.fields(options)},
+            )
+            return _run(runner, code, opened)
     finally:
         engine.dispose()
 

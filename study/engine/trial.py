@@ -13,7 +13,7 @@ import time
 from collections.abc import Callable
 from dataclasses import asdict, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from sqlalchemy.engine import Engine
@@ -44,6 +44,9 @@ from tasks.clearance import RangeStats, lrf_range
 from tasks.geometry import footprint_clearance
 from tasks.primary import PrimaryTask
 from tasks.secondary import SecondaryTask, summarise
+
+if TYPE_CHECKING:
+    from study.lsl.session import SessionLsl
 
 __all__ = [
     "DT",
@@ -98,9 +101,11 @@ class TrialLoop:
         on_tick: Callable[[int, TrialWriter], None] | None = None,
         max_collisions: int | None = None,
         stages: StageClock | None = None,
+        lsl: SessionLsl | None = None,
     ) -> None:
         self.spec, self.scene, self.participant, self.mode = spec, scene, participant, mode
         self.stages = stages
+        self.lsl = lsl  # the session's LSL outlets and recorder (study.lsl), if any
         self.clock = clock if clock is not None else FreeClock()
         self.control = control if control is not None else ExperimenterControl()
         self.on_tick, self.max_collisions = on_tick, max_collisions
@@ -119,6 +124,9 @@ class TrialLoop:
         self.trial_id = self.writer.start(
             trial_values, recording_rel if recording_rel is not None else (lambda tid: "")
         )
+        if lsl is not None:
+            lsl.begin_trial(self.trial_id, trial_values)
+            self.writer.listener = lsl.trial_event
         self.rec_path = recording_dir / self.writer.recording_path if recording_rel else None
         self.trial_key = f"{trial_values['phase']}/{self.trial_id}"
         self.footprint = scenario.robot.footprint()
@@ -174,7 +182,11 @@ class TrialLoop:
         finally:
             if recorder is not None:
                 recorder.close()
-        return self._finish()
+        try:
+            return self._finish()
+        finally:
+            if self.lsl is not None:
+                self.lsl.end_trial()
 
     def _recorder(self) -> TrialRecorder | NoRecording:
         """The trial's rerun recording, or none without a recording path."""
@@ -302,6 +314,8 @@ class TrialLoop:
         t = self.t = world.t
         self.tick += 1
         tick = self.tick
+        lsl = self.lsl
+        stamp = lsl.tick(tick - 1, t) if lsl is not None else None  # the tick's LSL clock
         if stages is not None:
             stages.lap(PHYSICS)
         pose, velocity = world.true_pose(), world.true_velocity()
@@ -331,8 +345,11 @@ class TrialLoop:
             in_region=in_region,
             true_task=task,
             true_target=target,
+            lsl_clock_s=stamp,
         )
         self.writer.samples.append(record.row(self.trial_id))
+        if lsl is not None:
+            lsl.state(record, velocity)
         if self.tally is not None:
             self.tally.add(record.label, record.target, task, target, record.beta)
         if stages is not None:
@@ -518,6 +535,7 @@ def run_trial(
     on_tick: Callable[[int, TrialWriter], None] | None = None,
     max_collisions: int | None = None,
     stages: StageClock | None = None,
+    lsl: SessionLsl | None = None,
 ) -> TrialResult:
     """Run one trial to its end and store it.
 
@@ -555,6 +573,10 @@ def run_trial(
         collisions), stored in the completing transaction.
     stages : StageClock, optional
         Reads the time of every stage of every tick (``asa bench --only trial``).
+    lsl : SessionLsl, optional
+        The session's LSL (:mod:`study.lsl.session`): every event as a marker, every tick
+        a state sample, both stamped with the tick's ``local_clock()``, which its sample
+        row stores.
 
     Returns
     -------
@@ -575,5 +597,6 @@ def run_trial(
         on_tick=on_tick,
         max_collisions=max_collisions,
         stages=stages,
+        lsl=lsl,
     )
     return loop.run()

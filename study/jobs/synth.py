@@ -131,6 +131,7 @@ def _run_job(job: _Job) -> _Done:
         slot=job.slot,
         lock=False,  # the study's synth lock covers the scratch folder
         place=job.place,
+        lsl_record=False,  # the protocol's LSL outlets, none of the lab's streams recorded
     )
     simulated = sum(
         (t.completion_time_s or 0.0) for t in summary.trials if t.completion_time_s is not None

@@ -13,7 +13,8 @@ secondary_baseline_level, timeouts, test, ``[analysis.tests]`` (metric -> test);
 practice feedback, pause: :data:`study.engine.texts.DEFAULT_TEXTS`); ``[input]`` deadzone,
 ``[input.axes]``, ``[input.buttons]``, invert, ``[input.keys]`` (the keyboard's letters),
 ``[input.names]`` (what the legends call the gamepad's controls); ``[recording]``
-camera_hz, camera_width, jpeg_quality.
+camera_hz, camera_width, jpeg_quality; ``[lsl]`` outlets, mode_names, resolve_timeout_s,
+``[[lsl.record]]`` (the lab's streams: :mod:`study.lsl.settings`).
 The participant's texts may hold placeholders (``{object}``, ``{attempt}``, ...; which ones
 each may use: :func:`study.engine.texts.allowed_placeholders`); ``{object}`` and
 ``{laser_colour}`` are filled here, from the main scene. The shipped files in
@@ -70,6 +71,7 @@ from study.engine.protocol.types import (
     StudyInfo,
     Training,
 )
+from study.lsl.settings import lsl_settings
 from tasks.secondary import SecondarySettings
 
 SITE_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_-]{0,31}\Z")  # a site's name
@@ -481,6 +483,7 @@ def parse_protocol(
     ui = ui_settings(r.sub("ui"))
     inp = input_settings(r.sub("input"))
     recording = _recording(r.sub("recording"))
+    lsl = lsl_settings(r.sub("lsl"), "lsl" in data)
     r.finish()
     main = next(p for p in phases if isinstance(p, MainTrials))
     phases, ui = protocol_words(r, phases, ui, scenarios.cache[main.scenario])
@@ -498,6 +501,7 @@ def parse_protocol(
         ui=ui,
         input=inp,
         recording=recording,
+        lsl=lsl,
         text=text,
         sha256=hashlib.sha256(text.encode("utf-8")).hexdigest(),
     )

@@ -11,6 +11,7 @@ from typing import Any, ClassVar
 from questionnaires import experience as experience_q
 from questionnaires import nasa_tlx
 from study.engine.texts import DEFAULT_TEXTS
+from study.lsl.settings import LslSettings
 from tasks.secondary import SecondarySettings
 
 PHASE_KINDS: tuple[str, ...] = (
@@ -309,6 +310,7 @@ class Protocol:
     text: str = field(repr=False)  # the file's exact text
     sha256: str  # hex SHA-256 of ``text`` in UTF-8
     recording: RecordingSettings = field(default_factory=RecordingSettings)
+    lsl: LslSettings = field(default_factory=LslSettings)  # [lsl]: outlets, the lab's streams
 
     def __post_init__(self) -> None:
         if hashlib.sha256(self.text.encode("utf-8")).hexdigest() != self.sha256:

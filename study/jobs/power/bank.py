@@ -133,7 +133,7 @@ def run_entry(job: BankJob) -> BankEntry:
         summary = run_session(
             job.protocol, entry_code(job.index), db, participant=participant,
             seed=job.session_seed, recordings=Path(folder) / "rec", record=False,
-            durable=False, slot=job.index, lock=False,
+            durable=False, slot=job.index, lock=False, lsl=False,
         )  # fmt: skip
         row, outcomes = _outcomes(db)
     main = [t for t in summary.trials if t.phase == "main"]
