@@ -487,11 +487,15 @@ class ContextualTaskMode:
     ) -> tuple[int, int, float, np.ndarray]:
         """The settings' recogniser on the ``chosen`` candidates' features ``Z`` (n, 7):
         (candidate row, cluster id, blend weight, the SOGP means (n, c))."""
-        i, cluster, beta, mean = self.runtime_.recogniser(Z)  # Eqs. (5.6), (5.8), (5.10)
         recogniser = self.settings.recogniser
-        if self.intent_ is not None and i >= 0:
+        if self.intent_ is not None:  # the means alone (Eq. 5.6): no Ch. 6 winner needed
+            mean = self.runtime_.recogniser.means(Z)
+            if not np.isfinite(mean).any():
+                return -1, -1, 0.0, mean
             i, cluster, beta = self._kind_time(components, chosen, ids, targets, mean, u_norm)
-        elif recogniser == "oracle":
+            return i, cluster, beta, mean
+        i, cluster, beta, mean = self.runtime_.recogniser(Z)  # Eqs. (5.6), (5.8), (5.10)
+        if recogniser == "oracle":
             i, cluster, beta = self._oracle(components, chosen, ids, mean)
         elif recogniser == "none":
             beta = 0.0
@@ -532,9 +536,15 @@ class ContextualTaskMode:
     ) -> tuple[int, int, float]:
         """The kind-and-time recogniser's candidate (row of ``chosen``), cluster id and
         blend weight; ``mean`` (n, c) the SOGP means of the ``chosen`` candidates."""
-        picked = [components[int(k)] for k in chosen.tolist()]
-        kinds = [str(c.kind) for c in picked]
-        normals = np.array([np.asarray(c.normal, dtype=float).reshape(2) for c in picked])
+        every_kind = getattr(components, "kinds", None)  # as _ids: without building them
+        if every_kind is not None:
+            kinds_all = every_kind()
+            kinds = [kinds_all[k] for k in chosen.tolist()]
+            normals = np.asarray(components.normals(), dtype=float)[chosen]
+        else:
+            picked = [components[int(k)] for k in chosen.tolist()]
+            kinds = [str(c.kind) for c in picked]
+            normals = np.array([np.asarray(c.normal, dtype=float).reshape(2) for c in picked])
         near = targets[chosen]
         found = self.intent_(mean, ids, kinds, near, normals, u_norm)
         classes = self.runtime_.recogniser.classes_

@@ -26,10 +26,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from autonomy.intent_prior import KIND_CLASS, RANKS, IntentPrior
+from autonomy import _intent_kernels
+from autonomy.intent_prior import KIND_CLASS, IntentPrior
 
 NULL = "\x00null"  # the belief's key of the no-task hypothesis (never a component id)
-_LOG_SQRT_2PI = 0.5 * math.log(2.0 * math.pi)
 
 
 @dataclass(frozen=True, slots=True)
@@ -96,6 +96,15 @@ class KindTimeRecogniser:
         self.prior = prior
         self.settings = settings
         self.belief_: dict[str, float] = {}
+        s = settings
+        # the kernel's floats (autonomy._intent_kernels.likelihood), then the rank prior
+        self.params_ = np.concatenate(
+            (
+                [s.evidence_scale, s.distance_weight, *prior.approach, s.rank_weight],
+                [s.axis_weight, s.toward_weight, s.dock_departure],
+                prior.log_rank,
+            )
+        ).astype(float)
 
     def reset(self) -> None:
         """Forget the belief (a new trial)."""
@@ -105,8 +114,7 @@ class KindTimeRecogniser:
         """A tick without input: the transition (4.14) alone, towards uniform."""
         if self.belief_:
             keys = list(self.belief_)
-            b = self._transition(keys)
-            self.belief_ = dict(zip(keys, b.tolist(), strict=True))
+            self.belief_ = dict(zip(keys, self._transition(keys), strict=True))
 
     def contradict(self, key: str) -> None:
         """The driver pushes against the assistance on ``key``: less belief in it."""
@@ -144,26 +152,31 @@ class KindTimeRecogniser:
             return Recognition(-1, -1, 0.0, 0.0, 0.0)
         log_l, best_j = self._likelihood(mean, kinds, targets, normals, u_norm)
         keys = [*ids, NULL]
-        b = self._transition(keys)
-        logs = np.append(log_l, self.settings.null_log_likelihood)
-        b = b * np.exp(logs - logs.max())  # Eq. (4.4)
-        b /= b.sum()
-        self.belief_ = dict(zip(keys, b.tolist(), strict=True))
-        i = int(np.argmax(b[:n]))
-        rest = np.delete(b, i)
-        p1, lead = float(b[i]), float(b[i] - rest.max()) if len(rest) else float(b[i])
+        prior = self._transition(keys)
+        logs = [*log_l.tolist(), self.settings.null_log_likelihood]
+        top = max(logs)
+        b = [p * math.exp(x - top) for p, x in zip(prior, logs, strict=True)]  # Eq. (4.4)
+        total = sum(b)
+        b = [v / total for v in b]
+        self.belief_ = dict(zip(keys, b, strict=True))
+        i = max(range(n), key=b.__getitem__)  # the first of equals, as argmax
+        p1 = b[i]
+        lead = p1 - max(v for k, v in enumerate(b) if k != i)
         s = self.settings
         beta = p1 if (p1 >= s.engage and lead >= s.margin) else 0.0
         return Recognition(i, int(best_j[i]), beta, p1, lead)
 
-    def _transition(self, keys: list[str]) -> np.ndarray:
+    def _transition(self, keys: list[str]) -> list[float]:
         """Eq. (4.14) over ``keys``: the last belief (new hypotheses at 0, renormalised;
-        uniform without one) kept with ``stay``, else spread uniformly."""
-        old = np.array([self.belief_.get(k, 0.0) for k in keys])
-        total = old.sum()
+        uniform without one) kept with ``stay``, else spread uniformly (plain floats: a
+        handful of hypotheses)."""
+        old = [self.belief_.get(k, 0.0) for k in keys]
+        total = sum(old)
         n = len(keys)
-        b = old / total if total > 0 else np.full(n, 1.0 / n)
-        return self.settings.stay * b + (1.0 - self.settings.stay) / n
+        stay = self.settings.stay
+        if total <= 0:
+            return [1.0 / n] * n
+        return [stay * v / total + (1.0 - stay) / n for v in old]
 
     def _likelihood(
         self,
@@ -173,47 +186,25 @@ class KindTimeRecogniser:
         normals: np.ndarray,
         u_norm: np.ndarray,
     ) -> tuple[np.ndarray, np.ndarray]:
-        """``log L(c)`` (n,) and each candidate's best primitive (n,) (module docstring)."""
-        s, p = self.settings, self.prior
+        """``log L(c)`` (n,) and each candidate's best primitive (n,) (module docstring),
+        computed by :func:`autonomy._intent_kernels.likelihood`."""
         n = len(kinds)
-        k = np.array([KIND_CLASS.get(kind, 0) for kind in kinds])
-        d = np.hypot(targets[:, 0], targets[:, 1])
-        x = np.log(np.maximum(d, 0.05))[:, None]  # (n, 1)
-        z_exec = (x - p.exec_mean[None, :]) / p.exec_sd[None, :]
-        z_app = (x - p.approach[0]) / p.approach[1]
-        log_exec = -0.5 * z_exec * z_exec - np.log(p.exec_sd)[None, :]
-        log_app = -0.5 * z_app * z_app - math.log(p.approach[1])
-        lj = s.evidence_scale * np.nan_to_num(mean, nan=-1e3, neginf=-1e3, posinf=1e3)
-        lj = lj + p.log_kind[:, k].T + s.distance_weight * (log_exec - log_app)
-        best_j = np.argmax(lj, axis=1)
-        top = lj.max(axis=1)
-        log_l = top + np.log(np.exp(lj - top[:, None]).sum(axis=1))
-        log_l += s.rank_weight * p.log_rank[np.minimum(np.arange(n), RANKS - 1)]
-        log_l += self._passage_cues(k, d, targets, normals, u_norm, kinds)
-        return log_l, best_j
-
-    def _passage_cues(
-        self,
-        k: np.ndarray,
-        d: np.ndarray,
-        targets: np.ndarray,
-        normals: np.ndarray,
-        u: np.ndarray,
-        kinds: list[str],
-    ) -> np.ndarray:
-        """(n,) the passages' cues: progress along the axis and approach; a dock moved away
-        from is no docking."""
-        s = self.settings
-        speed = math.hypot(float(u[0]), float(u[1]))
-        out = np.zeros(len(k))
-        if speed <= 1e-9:
-            return out
-        ux, uy = float(u[0]) / speed, float(u[1]) / speed
-        norm = np.hypot(normals[:, 0], normals[:, 1])
-        axis = np.abs(normals[:, 0] * ux + normals[:, 1] * uy) / np.where(norm > 0, norm, 1.0)
-        toward = (targets[:, 0] * ux + targets[:, 1] * uy) / np.where(d > 1e-9, d, 1.0)
-        passage = k == 0
-        out[passage] = s.axis_weight * axis[passage] + s.toward_weight * toward[passage]
-        leaving = np.array([kind == "dock" for kind in kinds]) & (toward < 0.0)
-        out[leaving] -= s.dock_departure
-        return out
+        kind = np.array([KIND_CLASS.get(k, 0) for k in kinds], dtype=np.int64)
+        dock = np.array([k == "dock" for k in kinds], dtype=np.bool_)
+        log_l, best = np.empty(n), np.empty(n, dtype=np.int64)
+        p = self.prior
+        _intent_kernels.likelihood(
+            np.ascontiguousarray(mean, dtype=float),
+            kind,
+            dock,
+            np.ascontiguousarray(targets, dtype=float),
+            np.ascontiguousarray(normals, dtype=float),
+            np.ascontiguousarray(u_norm, dtype=float),
+            p.log_kind,
+            p.exec_mean,
+            p.exec_sd,
+            self.params_,
+            log_l,
+            best,
+        )
+        return log_l, best

@@ -107,6 +107,21 @@ class Recogniser:
             beta = 0.0
         return i, int(self.classes_[j]), beta, mean
 
+    def means(self, Z: np.ndarray) -> np.ndarray:
+        """The posterior means (m, c) of Eq. (5.6) alone (no winner, no variance): what
+        the kind-and-time recogniser (autonomy.kind_time) builds on; ``Z`` as in
+        :meth:`__call__`. Equal to ``self(Z)[3]`` up to the sums' order."""
+        Z = np.ascontiguousarray(np.atleast_2d(np.asarray(Z, dtype=float)))
+        if len(Z) < 2:
+            return self(Z)[3]
+        c, b = self.alphav_.shape
+        K = np.empty((c, b, len(Z)))
+        _tick_kernels.sogp_kernels(Z, self.ls2_, self.xs_t_, self.xs2v_, self.sf2v_, K)
+        mean = np.empty((c, len(Z)))
+        for j in range(c):
+            _tick_kernels.gemv_rows(K[j], self.alphav_[j], mean[j])  # Eq. (5.6)
+        return mean.T
+
     def _many(self, Z: np.ndarray) -> tuple[int, int, float, np.ndarray]:
         """:meth:`__call__` for ``Z`` (m, d) C-contiguous float64, m >= 2: the kernels
         (:func:`autonomy._tick_kernels.sogp_kernels`, :func:`autonomy._tick_kernels.recognise`)

@@ -174,8 +174,8 @@ class Candidates(Protocol):
         """Every component's target point ``s`` (n, 2) [m], in index order."""
         ...
 
-    # optional: ``ids()``, the components' ids in index order (str), read for the
-    # recognition scores without building the components (autonomy.contextual)
+    # optional: ``ids()``, ``kinds()`` (str) and ``normals()`` ((n, 2), robot frame) in
+    # index order, read without building the components (autonomy.contextual)
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -197,6 +197,15 @@ class ComponentList:
     def ids(self) -> tuple[str, ...]:
         """The items' ids in index order."""
         return tuple(str(c.id) for c in self.items)
+
+    def kinds(self) -> tuple[str, ...]:
+        """The items' kinds in index order."""
+        return tuple(str(c.kind) for c in self.items)
+
+    def normals(self) -> np.ndarray:
+        """The items' passage normals (n, 2) (zeros where a component has none)."""
+        rows = [np.asarray(getattr(c, "normal", (0.0, 0.0)), dtype=float) for c in self.items]
+        return np.array(rows, dtype=float).reshape(-1, 2)
 
 
 def as_candidates(components: Candidates | Sequence[Component]) -> Candidates:

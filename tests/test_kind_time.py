@@ -186,3 +186,33 @@ def test_a_dock_is_approached_never_departed(rng):
         found[direction] = f
     assert found[1.0].beta >= 0.8 and found[1.0].posterior > found[-1.0].posterior
     assert found[-1.0].beta == 0.0
+
+
+def test_the_compiled_likelihood_equals_its_numpy_formulation(rng):
+    """Within PIPELINE_RTOL (tests/fp.py: exp, log and sums in another order), the best
+    primitive exactly unless two are tied within it."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).parent))
+    from fp import PIPELINE_RTOL, assert_pipeline_close
+    from kind_time_reference import ref_likelihood
+
+    rec = _recogniser(rng)
+    kinds_all = list(KIND_CLASS)
+    for t in range(300):
+        n = int(rng.integers(1, 12))
+        mean = rng.normal(size=(n, 2)) * rng.uniform(0.1, 3.0)
+        if t % 10 == 0:
+            mean[int(rng.integers(n)), int(rng.integers(2))] = rng.choice([np.nan, np.inf, -np.inf])
+        kinds = [kinds_all[int(i)] for i in rng.integers(0, len(kinds_all), n)]
+        targets = rng.normal(size=(n, 2)) * rng.uniform(0.05, 4.0)
+        normals = rng.normal(size=(n, 2)) * (rng.random((n, 1)) < 0.5)
+        u = rng.uniform(-1, 1, 3) * (t % 7 != 0)
+        got, got_best = rec._likelihood(mean, kinds, targets, normals, u)
+        ref, ref_best = ref_likelihood(rec, mean, kinds, targets, normals, u)
+        assert_pipeline_close(got, ref, name="kind_time.likelihood")
+        for c in range(n):
+            if got_best[c] != ref_best[c]:  # only at a near-tie of the primitives
+                lj = np.sort(np.nan_to_num(mean[c], nan=-1e3) * rec.settings.evidence_scale)
+                assert lj[-1] - lj[-2] <= PIPELINE_RTOL * max(abs(lj[-1]), 1.0) * 1e3

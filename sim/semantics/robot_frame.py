@@ -237,6 +237,22 @@ class RobotFrameComponents(Sequence[SemanticComponent]):
             return self._map.layout.ids
         return tuple(str(c.id) for c in self._map)
 
+    def kinds(self) -> tuple[str, ...]:
+        """The components' kinds in index order (nothing is transformed or built)."""
+        if isinstance(self._map, _Packed):
+            return tuple(item[1] for item in self._map.layout.items)
+        return tuple(str(c.kind) for c in self._map)
+
+    def normals(self) -> np.ndarray:
+        """Every component's passage normal (n, 2) in the robot frame (zeros for kinds
+        without one), from the stacked coordinates when packed."""
+        out = self._stacked() if self._seen is None else None
+        if out is not None:
+            return out[: self._map.layout.n]
+        return np.array([np.asarray(c.normal, dtype=float) for c in self.materialise()]).reshape(
+            -1, 2
+        )
+
     def prepare(self) -> RobotFrameComponents:
         """Compute the robot-frame coordinates now rather than when first read (the
         per-stage clock of the trial loop times them apart from their reader)."""
