@@ -83,28 +83,23 @@ def fit_intent_prior(
 
 
 def demonstrated_prior(
-    q: np.ndarray,
-    labels: np.ndarray,
-    points: np.ndarray,
-    offsets: np.ndarray,
-    ids: np.ndarray,
-    target: np.ndarray,
-    kinds: np.ndarray,
-    executing: np.ndarray,
+    q: np.ndarray, labels: np.ndarray, candidates: Any, executing: np.ndarray
 ) -> dict[str, Any]:
     """:func:`fit_intent_prior` of demonstrated ticks: each target's distance (``q[:, :2]``,
-    (n, 6) task features), kind and rank among the tick's components (``points`` (m, 2)
-    [m], ``ids``, ``kinds`` (m,) of tick ``i`` at ``offsets[i]:offsets[i + 1]``;
-    ``target`` (n,) the demonstrated component's id); ``labels`` (n,) the primitives,
+    (n, 6) task features), kind and rank among the tick's components. ``candidates`` has
+    ``points`` (m, 2) [m], ``ids`` and ``kinds`` (m,) (tick ``i``'s at
+    ``offsets[i]:offsets[i + 1]``) and ``target`` (n,), the demonstrated component's id
+    (:class:`autonomy.training.DemoCandidates`); ``labels`` (n,) the primitives,
     ``executing`` (n,) bool."""
     n = len(q)
     kind, rank = np.full(n, "", dtype=object), np.full(n, -1, dtype=np.int64)
+    points, offsets, ids = candidates.points, candidates.offsets, candidates.ids
     for i in range(n):
         a, b = int(offsets[i]), int(offsets[i + 1])
-        hit = np.flatnonzero(ids[a:b] == target[i])
+        hit = np.flatnonzero(ids[a:b] == candidates.target[i])
         if len(hit):
             order = np.argsort(np.einsum("ij,ij->i", points[a:b], points[a:b]), kind="stable")
-            kind[i] = str(kinds[a + hit[0]])
+            kind[i] = str(candidates.kinds[a + hit[0]])
             rank[i] = int(np.flatnonzero(order == hit[0])[0])
     distance = np.hypot(q[:, 0], q[:, 1])
     return fit_intent_prior(labels, distance, np.asarray(executing, dtype=bool), kind, rank)

@@ -341,16 +341,7 @@ def train(
     info["way_points"] = int(len(wp))
     metadata = _metadata(q, labels, task, classifier, info, settings, seed=seed, source=source)
     if candidates is not None and candidates.kinds is not None and executing is not None:
-        metadata["intent_prior"] = demonstrated_prior(
-            q,
-            labels,
-            candidates.points,
-            candidates.offsets,
-            candidates.ids,
-            candidates.target,
-            candidates.kinds,
-            executing,
-        )
+        metadata["intent_prior"] = demonstrated_prior(q, labels, candidates, executing)
     return ContextualModel.with_classifier(
         classifier,
         scaler=scaler,
