@@ -575,28 +575,5 @@ def make_contextual_task(**settings: Any) -> ContextualTaskMode:
     )
 
 
-# the contextual mode with another recogniser under its own name, so that one protocol can
-# compare them (protocols/ablation.toml): registry name -> recogniser
-VARIANTS: dict[str, str] = {
-    "contextual_thesis": "thesis",
-    "contextual_oracle": "oracle",
-    "contextual_safety": "none",
-}
-
-
-def _variant(name: str, recogniser: str) -> None:
-    @register(name)
-    def make(**settings: Any) -> ContextualTaskMode:
-        where = f"mode {name!r}"
-        if "recogniser" in settings:
-            raise ValueError(f"{where}: setting 'recogniser' is fixed ({recogniser!r})")
-        values = {**settings, "recogniser": recogniser}
-        mode = ContextualTaskMode(settings_from(ContextualSettings, values, where=where))
-        mode.name = name
-        return mode
-
-    make.__doc__ = f"The contextual mode with ``recogniser = {recogniser!r}`` (an ablation)."
-
-
-for _name, _recogniser in VARIANTS.items():
-    _variant(_name, _recogniser)
+# the mode's variants with other recognisers register themselves once the mode exists
+from autonomy import contextual_variants  # noqa: E402, F401, I001
