@@ -10,7 +10,8 @@ primitive ``j``::
     log L(c)    = logsumexp_j log L(c, j) + w_r log p(rank of c) + cues(c)
 
 ``mu_cj`` the SOGP posterior mean (5.6); the passage cues are progress along the passage's
-axis (``|cos(u, normal)|``) and approach (``cos(u, s_c)``). A null hypothesis (the driver
+axis (``|cos(u, normal)|``) and approach (``cos(u, s_c)``), and a dock moved away from
+loses ``dock_departure`` (a goal, never crossed). A null hypothesis (the driver
 is on no task) has a constant likelihood. The belief over the candidates and the null
 follows the sticky transition of Eq. (4.14), ``stay b + (1 - stay) / N``, and Bayes' rule
 (4.4); while the driver idles only the transition runs, so the belief decays towards
