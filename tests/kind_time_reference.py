@@ -11,8 +11,8 @@ from autonomy.intent_prior import KIND_CLASS, RANKS
 
 
 def ref_likelihood(rec, mean, kinds, targets, normals, u):
-    """``(log L (n,), best primitive (n,))`` of :class:`autonomy.kind_time.KindTimeRecogniser`
-    ``rec`` for one tick's candidates."""
+    """``(log L (n,), best primitive (n,), log L(c, j) (n, J))`` of
+    :class:`autonomy.kind_time.KindTimeRecogniser` ``rec`` for one tick's candidates."""
     s, p = rec.settings, rec.prior
     n = len(kinds)
     k = np.array([KIND_CLASS.get(kind, 0) for kind in kinds])
@@ -38,4 +38,4 @@ def ref_likelihood(rec, mean, kinds, targets, normals, u):
         log_l[passage] += s.axis_weight * axis[passage] + s.toward_weight * toward[passage]
         leaving = np.array([kind == "dock" for kind in kinds]) & (toward < 0.0)
         log_l[leaving] -= s.dock_departure
-    return log_l, best
+    return log_l, best, lj
