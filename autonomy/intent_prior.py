@@ -26,6 +26,9 @@ KIND_CLASSES = ("passage", "object", "wall")
 RANKS = 10  # ranks of the target among the nearest components kept (the mode's candidates)
 MIN_DISTANCE_M = 0.05  # distances below are taken as this in the log-normal fits
 SMOOTHING = 1.0  # Laplace pseudo-counts of the kind shares and ranks
+# least spread of a primitive's execution distance [log m]: a scripted demonstrator keeps
+# one standoff (an inspection's sd came out 0.05), people keep theirs within some 15 %
+EXECUTION_SD = 0.15
 
 
 def fit_intent_prior(
@@ -69,7 +72,7 @@ def fit_intent_prior(
         shares[str(int(c))] = [round(float(x), 6) for x in counts / counts.sum()]
         run = logd[mine & executing]
         run = run if len(run) >= 2 else logd[mine]
-        spread[str(int(c))] = _normal(run)
+        spread[str(int(c))] = _normal(run, EXECUTION_SD)
     rank = np.asarray(target_rank, dtype=np.int64)
     counts = np.bincount(rank[(rank >= 0) & (rank < RANKS)], minlength=RANKS) + SMOOTHING
     approach = logd[~executing]
@@ -105,9 +108,10 @@ def demonstrated_prior(
     return fit_intent_prior(labels, distance, np.asarray(executing, dtype=bool), kind, rank)
 
 
-def _normal(x: np.ndarray) -> list[float]:
-    """``[mean, sd]`` of ``x``, the sd at least 0.05 (a log-distance spread of 5 %)."""
-    return [round(float(np.mean(x)), 6), round(max(float(np.std(x)), 0.05), 6)]
+def _normal(x: np.ndarray, least_sd: float = 0.05) -> list[float]:
+    """``[mean, sd]`` of ``x``, the sd at least ``least_sd`` (0.05: a log-distance spread
+    of 5 %)."""
+    return [round(float(np.mean(x)), 6), round(max(float(np.std(x)), least_sd), 6)]
 
 
 @dataclass(frozen=True, slots=True)
