@@ -22,11 +22,12 @@ def likelihood(
     class, ``dock`` (n,) bool, ``targets`` and ``normals`` (n, 2), ``u`` (3,) normalised
     command, ``log_kind`` (J, 3), ``exec_mean`` and ``exec_sd`` (J,) [log m], ``prior``
     the floats (evidence_scale, distance_weight, approach mean, approach sd, rank_weight,
-    axis_weight, toward_weight, dock_departure) then the log rank prior."""
+    axis_weight, toward_weight, dock_departure, exit_radius) then the log rank prior."""
     n, J = mean.shape
     a, wd, app_m, app_s = prior[0], prior[1], prior[2], prior[3]
     wr, w_axis, w_toward, departure = prior[4], prior[5], prior[6], prior[7]
-    ranks = prior.shape[0] - 8
+    exit_radius = prior[8]
+    ranks = prior.shape[0] - 9
     speed = math.sqrt(u[0] * u[0] + u[1] * u[1])
     for c in range(n):
         tx, ty = targets[c, 0], targets[c, 1]
@@ -48,13 +49,16 @@ def likelihood(
         total = 0.0
         for j in range(J):
             total += math.exp(lj[j] - top)
-        value = top + math.log(total) + wr * prior[8 + min(c, ranks - 1)]
+        value = top + math.log(total) + wr * prior[9 + min(c, ranks - 1)]
         if kind[c] == 0 and speed > 1e-9:
             ux, uy = u[0] / speed, u[1] / speed
             nx, ny = normals[c, 0], normals[c, 1]
             norm = math.sqrt(nx * nx + ny * ny)
             axis = abs(nx * ux + ny * uy) / norm if norm > 0 else 0.0
             toward = (tx * ux + ty * uy) / d if d > 1e-9 else 0.0
+            if toward < 0.0 and not dock[c] and d <= exit_radius and norm > 0:
+                # leaving through the passage: on its axis and moving along it
+                toward = abs(nx * tx + ny * ty) / (norm * d) * axis
             value += w_axis * axis + w_toward * toward
             if dock[c] and toward < 0.0:
                 value -= departure

@@ -10,8 +10,9 @@ primitive ``j``::
     log L(c)    = logsumexp_j log L(c, j) + w_r log p(rank of c) + cues(c)
 
 ``mu_cj`` the SOGP posterior mean (5.6); the passage cues are progress along the passage's
-axis (``|cos(u, normal)|``) and approach (``cos(u, s_c)``), and a dock moved away from
-loses ``dock_departure`` (a goal, never crossed). A null hypothesis (the driver
+axis (``|cos(u, normal)|``) and approach (``cos(u, s_c)``; leaving a doorway or gap
+within ``exit_radius`` of its centre, on its axis, counts as approach: the crossing goes
+on), and a dock moved away from loses ``dock_departure`` (a goal, never crossed). A null hypothesis (the driver
 is on no task) has a constant likelihood. The belief over the candidates and the null
 follows the sticky transition of Eq. (4.14), ``stay b + (1 - stay) / N``, and Bayes' rule
 (4.4); while the driver idles only the transition runs, so the belief decays towards
@@ -44,8 +45,11 @@ class KindTimeSettings:
     toward_weight: float = 2.0  # passages: cos(u, direction to the passage centre)
     # a dock is a goal, approached and never crossed (Sec. 4.2.4): log L of moving away
     dock_departure: float = 5.0
+    # [m] a crossing goes on past the centre: within this of it, moving away along the
+    # passage's axis while on it counts as progress (|cos(s_c, normal)| |cos(u, normal)|)
+    exit_radius: float = 1.0
     stay: float = 0.95  # Eq. (4.14): probability of keeping the hypothesis per tick
-    null_log_likelihood: float = 2.5  # log L of the no-task hypothesis
+    null_log_likelihood: float = 2.75  # log L of the no-task hypothesis
     engage: float = 0.8  # least winner posterior with a non-zero blend weight
     margin: float = 0.5  # least lead over the runner-up and the null
     contradicted: float = 0.5  # belief factor of a hypothesis the driver pushes against
@@ -55,6 +59,7 @@ class KindTimeSettings:
             _check(name, getattr(self, name), 0.0, 100.0)
         _check("toward_weight", self.toward_weight, 0.0, 100.0)
         _check("dock_departure", self.dock_departure, 0.0, 100.0)
+        _check("exit_radius", self.exit_radius, 0.0, 10.0)
         _check("null_log_likelihood", self.null_log_likelihood, -100.0, 100.0)
         for name in ("stay", "engage", "margin", "contradicted"):
             _check(name, getattr(self, name), 0.0, 1.0)
@@ -102,7 +107,7 @@ class KindTimeRecogniser:
         self.params_ = np.concatenate(
             (
                 [s.evidence_scale, s.distance_weight, *prior.approach, s.rank_weight],
-                [s.axis_weight, s.toward_weight, s.dock_departure],
+                [s.axis_weight, s.toward_weight, s.dock_departure, s.exit_radius],
                 prior.log_rank,
             )
         ).astype(float)

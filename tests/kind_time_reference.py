@@ -34,8 +34,12 @@ def ref_likelihood(rec, mean, kinds, targets, normals, u):
         norm = np.hypot(normals[:, 0], normals[:, 1])
         axis = np.abs(normals[:, 0] * ux + normals[:, 1] * uy) / np.where(norm > 0, norm, 1.0)
         toward = (targets[:, 0] * ux + targets[:, 1] * uy) / np.where(d > 1e-9, d, 1.0)
+        docks = np.array([kind == "dock" for kind in kinds])
+        along = np.abs(normals[:, 0] * targets[:, 0] + normals[:, 1] * targets[:, 1])
+        along = along / np.where((norm > 0) & (d > 1e-9), norm * d, 1.0)
+        leaving = (toward < 0.0) & ~docks & (d <= s.exit_radius) & (norm > 0)
+        toward = np.where(leaving, along * axis, toward)
         passage = k == 0
         log_l[passage] += s.axis_weight * axis[passage] + s.toward_weight * toward[passage]
-        leaving = np.array([kind == "dock" for kind in kinds]) & (toward < 0.0)
-        log_l[leaving] -= s.dock_departure
+        log_l[docks & (toward < 0.0)] -= s.dock_departure
     return log_l, best, lj

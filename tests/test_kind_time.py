@@ -188,6 +188,31 @@ def test_a_dock_is_approached_never_departed(rng):
     assert found[-1.0].beta == 0.0
 
 
+def test_a_crossing_goes_on_past_the_passage_centre(rng):
+    """Leaving a doorway along its axis within ``exit_radius`` of its centre scores as
+    approaching it head-on; beyond the radius, or off the axis, moving away does not."""
+    prior = IntentPrior.from_metadata({"intent_prior": _prior(rng)}, CLASSES)
+    rec = KindTimeRecogniser(prior, KindTimeSettings())
+    plain = KindTimeRecogniser(prior, KindTimeSettings(exit_radius=0.0))
+    mean, normal, u = np.array([[1.0, -1.0]]), np.array([[1.0, 0.0]]), np.array([0.6, 0, 0])
+
+    def log_l(r, target):
+        return r._likelihood(mean, ["doorway"], np.array([target]), normal, u)[0][0]
+
+    assert log_l(rec, [-0.4, 0.0]) == pytest.approx(log_l(rec, [0.4, 0.0]), rel=1e-12)
+    w = rec.settings.toward_weight
+    assert log_l(rec, [-0.4, 0.0]) == pytest.approx(log_l(plain, [-0.4, 0.0]) + 2 * w)
+    beyond = [-(rec.settings.exit_radius + 0.2), 0.0]
+    assert log_l(rec, beyond) == log_l(plain, beyond)
+    # beside the axis (45 degrees off it): as its mirror image approaching, less than on it
+    aside = [-0.3, 0.3]
+    assert log_l(rec, aside) == pytest.approx(log_l(rec, [0.3, 0.3]), rel=1e-12)
+    assert log_l(plain, aside) < log_l(rec, aside) < log_l(rec, [-0.3 * 2**0.5, 0.0])
+    # a dock is never crossed: leaving it is departure, whatever the radius
+    dock = rec._likelihood(mean, ["dock"], np.array([[-0.4, 0.0]]), normal, u)[0][0]
+    assert dock < log_l(plain, [-0.4, 0.0])
+
+
 def test_the_compiled_likelihood_equals_its_numpy_formulation(rng):
     """Within PIPELINE_RTOL (tests/fp.py: exp, log and sums in another order), the best
     primitive exactly unless two are tied within it."""
