@@ -10,15 +10,16 @@ primitive ``j``::
     log L(c)    = logsumexp_j log L(c, j) + w_r log p(rank of c) + cues(c)
 
 ``mu_cj`` the SOGP posterior mean (5.6); the passage cues are progress along the passage's
-axis (``|cos(u, normal)|``) and approach (``cos(u, s_c)``; leaving a doorway or gap
-within ``exit_radius`` of its centre, on its axis, counts as approach: the crossing goes
-on), and a dock moved away from loses ``dock_departure`` (a goal, never crossed). A null hypothesis (the driver
-is on no task) has a constant likelihood. The belief over the candidates and the null
-follows the sticky transition of Eq. (4.14), ``stay b + (1 - stay) / N``, and Bayes' rule
-(4.4); while the driver idles only the transition runs, so the belief decays towards
-uniform and no hypothesis is ever certain. The blend weight is the winner's posterior when
-it is decisive (at least ``engage`` and ahead of the runner-up and the null by ``margin``),
-else 0. Choices: docs/decisions.md, "The kind-and-time recogniser".
+axis (``|cos(u, normal)|``) and approach (``cos(u, s_c)``; leaving a doorway or gap within
+``exit_radius`` of its centre counts as its mirror image approaching it: the crossing goes
+on), and a dock moved away from loses ``dock_departure`` (a goal, never crossed). A null
+hypothesis (the driver is on no task) has a constant likelihood. The belief over the
+candidates and the null follows the sticky transition of Eq. (4.14), ``stay b + (1 - stay)
+/ N``, and Bayes' rule (4.4); while the driver idles only the transition runs, so the
+belief decays towards uniform and no hypothesis is ever certain. The blend weight is the
+winner's posterior when it is decisive (at least ``engage`` and ahead of the runner-up and
+the null by ``margin``), else 0. Choices: docs/decisions.md, "The kind-and-time
+recogniser".
 """
 
 from __future__ import annotations

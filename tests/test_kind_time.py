@@ -10,7 +10,13 @@ import numpy as np
 import pytest
 
 from autonomy.contextual import ContextualSettings, ContextualTaskMode
-from autonomy.intent_prior import KIND_CLASS, RANKS, IntentPrior, fit_intent_prior
+from autonomy.intent_prior import (
+    EXECUTION_SD,
+    KIND_CLASS,
+    RANKS,
+    IntentPrior,
+    fit_intent_prior,
+)
 from autonomy.kind_time import KindTimeRecogniser, KindTimeSettings
 from autonomy.modes import make_mode
 
@@ -41,6 +47,15 @@ def test_the_prior_is_learnt_from_kinds_distances_and_ranks(rng):
     assert abs(mean_wall - (-0.5)) < 0.05  # the executed wall distances' log mean
     assert math.isclose(sum(prior["rank"]), 1.0, abs_tol=1e-5) and len(prior["rank"]) == RANKS
     assert prior["rank"][0] > prior["rank"][1] > prior["rank"][2]
+    # one standoff demonstrated: the spread is the least a driver's is taken to have
+    one = fit_intent_prior(
+        np.zeros(50, int),
+        np.full(50, 0.9),
+        np.ones(50, bool),
+        np.full(50, "object"),
+        np.zeros(50, int),
+    )
+    assert one["execution_log_distance"]["0"] == [round(math.log(0.9), 6), EXECUTION_SD]
     arrays = IntentPrior.from_metadata({"intent_prior": prior}, CLASSES[::-1])
     assert arrays.learnt and arrays.log_kind.shape == (2, 3)
     assert arrays.exec_mean[0] == pytest.approx(mean_wall)  # aligned with the classes
@@ -189,8 +204,8 @@ def test_a_dock_is_approached_never_departed(rng):
 
 
 def test_a_crossing_goes_on_past_the_passage_centre(rng):
-    """Leaving a doorway along its axis within ``exit_radius`` of its centre scores as
-    approaching it head-on; beyond the radius, or off the axis, moving away does not."""
+    """Leaving a doorway within ``exit_radius`` of its centre scores as its mirror image
+    approaching it (head-on on the axis, less beside it); beyond the radius it does not."""
     prior = IntentPrior.from_metadata({"intent_prior": _prior(rng)}, CLASSES)
     rec = KindTimeRecogniser(prior, KindTimeSettings())
     plain = KindTimeRecogniser(prior, KindTimeSettings(exit_radius=0.0))
