@@ -448,6 +448,26 @@ def test_cache_records_once_and_reports_another_hash(recorded, tmp_path, monkeyp
     assert cache_root() == tmp_path / "xdg" / "asa-study"
 
 
+def test_passage_normals_come_from_the_runs_scenes(recorded):
+    from study.jobs.demonstrations import candidate_normals, load_demonstrations
+
+    demos = load_demonstrations(recorded)
+    normals, missing = candidate_normals(demos)
+    assert missing == [] and normals.shape == demos.cand_points.shape
+    passage = np.isin(demos.cand_kinds, ("doorway", "gap", "dock"))
+    assert passage.any()
+    # unit crossing directions, rotated only (1e-12: a few roundings of cos and sin)
+    np.testing.assert_allclose(np.hypot(*normals[passage].T), 1.0, atol=1e-12)
+    assert not normals[~passage].any()  # objects and walls have none
+    # another scene of the run's name, or none shipped: its runs keep zero normals
+    runs = [{**r, "scene": "cluttered_room"} for r in demos.runs[:1]] + [
+        {**r, "scene": "not_a_shipped_scene"} for r in demos.runs[1:]
+    ]
+    other, missing = candidate_normals(replace(demos, runs=tuple(runs)))
+    assert missing == ["cluttered_room"] + ["not_a_shipped_scene"] * (len(runs) - 1)
+    assert not other.any()
+
+
 @pytest.mark.slow
 def test_asa_evaluate_runs_on_recorded_demonstrations(recorded, tmp_path, capsys):
     out = tmp_path / "eval.json"
@@ -460,5 +480,5 @@ def test_asa_evaluate_runs_on_recorded_demonstrations(recorded, tmp_path, capsys
     for key in ("f05", "confusion", "introspection_entropy", "trajectory_rates"):
         assert key in saved
     assert saved["n_runs"] == 4 and saved["folds"] == 2 and saved["seed"] == 0
-    assert "kind_time" in saved["acr"]
+    assert saved["passage_normals"] == {"runs": 4, "of": 4} and "kind_time" in saved["acr"]
     assert saved["repeats"]["seeds"] == [0, 1]  # the top level is the first seed's

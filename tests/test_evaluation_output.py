@@ -219,3 +219,5 @@ def test_asa_evaluate_prints_progress_on_stderr_and_clean_json(recorded, capsys)
         assert key in result
     assert set(result["acr"]) == set(result["micad"]) == set(CORRESPONDENCE)
     assert "kind_time" in result["trajectory_rates"] and result["kind_time_introspection"]
+    # every run of the shipped scenes gets its passages' normals (the axis cue)
+    assert result["passage_normals"] == {"runs": 4, "of": 4}
