@@ -121,6 +121,13 @@ def _sizes(value: str) -> tuple[int, ...]:
     help="Folder for bank.sqlite, power.json, power.html and power_curves.png/svg.",
 )
 @click.option("--resume", is_flag=True, help="Continue the bank in --out (only what is missing).")
+@click.option(
+    "--posthoc-gate",
+    type=click.Choice(("auto", "omnibus", "none")),
+    default=None,
+    help="Which post-hoc families wait for the omnibus test; default the protocol's "
+    "[analysis] posthoc_gate (auto: the LSD forms only, Holm and Bonferroni on their own).",
+)
 def power(
     protocol: str,
     sizes: str,
@@ -131,6 +138,7 @@ def power(
     workers: int | None,
     out: Path,
     resume: bool,
+    posthoc_gate: str | None,
 ) -> None:
     """Simulation-based power of every planned test of a protocol.
 
@@ -148,6 +156,7 @@ def power(
     settings = PowerSettings(
         sizes=_sizes(sizes), studies=studies, bank=bank, seed=seed, scheduler=scheduler,
         workers=workers if workers is not None else (os.cpu_count() or 1), resume=resume,
+        posthoc_gate=posthoc_gate,
     )  # fmt: skip
     summary = run_power(load_protocol(protocol), out, settings, progress=ProgressBar())
     timing = summary.result["timing"]
