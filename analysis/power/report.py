@@ -539,18 +539,34 @@ def render_html(result: Mapping, panels: Sequence[Mapping]) -> str:
         undefined=jinja2.StrictUndefined,
     )
     s = result["settings"]
+    from_pilot = result.get("source") == "pilot"
+    if from_pilot:  # asa power --from-study (issue 39)
+        from analysis.power import pilot_text
+
+        text = {
+            "methods": pilot_text.pilot_methods(result),
+            "tables": pilot_text.pilot_settings_tables(result),
+            "limitations": pilot_text.pilot_limitations(result),
+            "spread": pilot_text.spread_rows(result),
+        }
+    else:
+        text = {
+            "methods": methods_paragraph(result),
+            "tables": settings_tables(result),
+            "limitations": limitations(result),
+            "spread": [],
+        }
     return env.get_template("power.html.j2").render(
         result=result,
+        from_pilot=from_pilot,
         protocol=result["protocol"],
         settings=s,
-        methods=methods_paragraph(result),
         summary=result["summary"],
         sizes=s["sizes"],
         rows=summary_rows(result),
         panels=panels,
-        effects=effect_sections(result),
-        tables=settings_tables(result),
-        limitations=limitations(result),
+        effects=[e for e in effect_sections(result) if "@" not in e["metric"]],
+        **text,
         curves_png=f"{CURVES_STEM}.png",
         curves_svg=f"{CURVES_STEM}.svg",
     )
