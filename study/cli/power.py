@@ -176,6 +176,13 @@ def _interest(values: tuple[str, ...]) -> dict[str, float]:
 )
 @click.option("--resume", is_flag=True, help="Continue the bank in --out (only what is missing).")
 @click.option(
+    "--population",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="With --protocol: a population file (TOML, e.g. from asa calibrate); default the "
+    "platform's model.",
+)
+@click.option(
     "--posthoc-gate",
     type=click.Choice(("auto", "omnibus", "none")),
     default=None,
@@ -198,6 +205,7 @@ def power(
     out: Path,
     resume: bool,
     posthoc_gate: str | None,
+    population: Path | None,
 ) -> None:
     """Simulation-based power of every planned test of a protocol: from a bank of
     synthetic participants (--protocol), or from a pilot's own data (--from-study).
@@ -215,8 +223,8 @@ def power(
         raise ValueError("asa power: give exactly one of --protocol and --from-study")
     workers = workers if workers is not None else (os.cpu_count() or 1)
     if from_study is not None:
-        if bank is not None or resume:
-            raise ValueError("--bank and --resume: only with --protocol (a bank)")
+        if bank is not None or resume or population is not None:
+            raise ValueError("--bank, --resume and --population: only with --protocol (a bank)")
         summary = _from_study(
             from_study, out, sizes, studies, seed, scheduler, workers, posthoc_gate,
             metrics=metrics, interest=interest, model=model, draws=draws,
@@ -226,19 +234,22 @@ def power(
             raise ValueError("--metric and --effect-of-interest: only with --from-study")
         summary = _from_bank(
             protocol, out, sizes, studies, bank if bank is not None else 300, seed,
-            scheduler, workers, resume, posthoc_gate,
+            scheduler, workers, resume, posthoc_gate, population,
         )  # fmt: skip
     for line in summary.lines:
         click.echo(f"  {line}")
 
 
-def _from_bank(protocol, out, sizes, studies, bank, seed, scheduler, workers, resume, gate):
+def _from_bank(protocol, out, sizes, studies, bank, seed, scheduler, workers, resume, gate, people):
     from study.engine.protocol import load_protocol
     from study.jobs.power import PowerSettings, run_power
+    from study.participants.population import Population
+    from study.participants.population_file import load_population
 
     settings = PowerSettings(
         sizes=_sizes(sizes), studies=studies, bank=bank, seed=seed, scheduler=scheduler,
         workers=workers, resume=resume, posthoc_gate=gate,
+        population=load_population(people) if people is not None else Population(),
     )  # fmt: skip
     summary = run_power(load_protocol(protocol), out, settings, progress=ProgressBar())
     timing = summary.result["timing"]
