@@ -95,6 +95,11 @@ def test_bad_flags_of_from_study(pilot_db, tmp_path, capsys):
     assert "--effect-of-interest" in line and "METRIC=VALUE" in line
     line = _bad(capsys, "--from-study", str(pilot_db), "--effect-of-interest", "score_s=-3", *SMALL)
     assert "--effect-of-interest" in line and "positive" in line
+    line = _bad(
+        capsys, "--from-study", str(pilot_db), "--metric", "tlx_raw",
+        "--effect-of-interest", "score_s=3", *SMALL,
+    )  # fmt: skip
+    assert "--effect-of-interest: score_s is not among" in line
     line = _bad(capsys, "--from-study", str(pilot_db), "--protocol", "pilot", *SMALL)
     assert "exactly one of --protocol and --from-study" in line
     line = _bad(capsys, "--from-study", str(pilot_db), "--bank", "10", *SMALL)

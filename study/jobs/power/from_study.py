@@ -106,6 +106,12 @@ def pilot_models(source: str, s: FromStudySettings) -> tuple[Any, dict[str, Pilo
                 f"{source}: metric {metric!r} is not planned by the study's protocol "
                 f"([analysis] metrics: {', '.join(cfg.metrics) or 'none'})"
             )
+    for metric in s.interest:
+        if metric not in chosen:
+            raise ValueError(
+                f"--effect-of-interest: {metric} is not among the metrics simulated "
+                f"({', '.join(chosen)}); add --metric {metric}"
+            )
     frames = tidy(data)
     models, longs = {}, {}
     for metric in chosen:
