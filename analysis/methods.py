@@ -349,6 +349,16 @@ _POSTHOC_WORDS = {  # the protocol's posthoc (issue 21) as the Methods text name
 }
 
 
+def posthoc_gate_words(posthoc: str, posthoc_gate: str) -> str:
+    """When the planned post-hoc family ran, in the Methods text's words (see
+    :func:`analysis.stats.posthoc_gated`)."""
+    if posthoc_gate == "omnibus" or (posthoc_gate == "auto" and posthoc.startswith("lsd")):
+        return "where the omnibus test rejected"
+    if posthoc.startswith("lsd"):
+        return "whatever the omnibus test gave (unprotected: no family-wise error control)"
+    return "whatever the omnibus test gave (the correction controls the family-wise error)"
+
+
 _TEST_WORDS = {  # the protocol's [analysis] test (issue 21) as the Methods text names it
     "friedman": "Friedman's test (with Kendall's W), followed by Wilcoxon signed-rank pairs "
     "with Holm's correction where it rejected",
@@ -369,10 +379,14 @@ def _analysis(data: StudyData) -> str:
     anova = (
         f"a one-way repeated-measures ANOVA over the modes at \u03b1 = {c.alpha:g}, with "
         f"Mauchly's test and the Greenhouse\u2013Geisser correction ({gate}), followed by "
-        f"{_POSTHOC_WORDS.get(c.posthoc, c.posthoc)} where the omnibus test rejected"
+        f"{_POSTHOC_WORDS.get(c.posthoc, c.posthoc)} "
+        f"{posthoc_gate_words(c.posthoc, c.posthoc_gate)}"
     )
     planned = [f"{m}: {_TEST_WORDS[t].split(' (')[0]}" for m, t in c.tests.items()]
-    lead = anova if c.test == "rm_anova" else f"{_TEST_WORDS[c.test]} (the ANOVA: {anova})"
+    words = _TEST_WORDS.get(c.test, "")
+    if c.posthoc_gate != "omnibus":  # Wilcoxon-Holm pairs are gated only then
+        words = words.replace(" where it rejected", " whatever it gave")
+    lead = anova if c.test == "rm_anova" else f"{words} (the ANOVA: {anova})"
     return (
         f"Each metric ({', '.join(c.metrics) or 'the report defaults'}) was analysed by "
         f"{lead}"

@@ -26,6 +26,9 @@ alpha <- {alpha}
 metrics <- c({metrics})
 tests <- c({tests})        # planned omnibus test per metric (rm_anova or friedman)
 posthoc <- "{posthoc}"; adjust <- "{adjust}"; model <- "{model}"
+gate <- "{gate}"           # which p of the ANOVA decides (auto: GG when Mauchly p < .05)
+gated <- {gated}           # posthoc_gate {posthoc_gate}: the pairs wait for the omnibus test
+wilcoxon_gated <- {wilcoxon_gated}  # the same for Friedman's Wilcoxon-Holm pairs
 trials <- read.csv("tables/trials.csv", stringsAsFactors = FALSE)
 trials$mode <- factor(trials$mode, levels = c({modes}))
 trials$position <- trials$position + 1
@@ -40,13 +43,23 @@ for (m in metrics) {{
   a <- aov_ez("participant", "y", w, within = "mode",
               anova_table = list(correction = "GG", es = c("pes", "ges")))
   print(summary(a))                       # Mauchly, Greenhouse-Geisser, eta squared
-  print(summary(pairs(emmeans(a, ~ mode, model = model), adjust = adjust),
-                infer = c(TRUE, TRUE), level = 1 - alpha))
+  sph <- summary(a)$sphericity.tests
+  violated <- length(sph) > 0 && sph[1, "p-value"] < 0.05
+  use_gg <- gate == "greenhouse_geisser" || (gate == "auto" && violated)
+  p_gate <- anova(a, correction = if (use_gg) "GG" else "none")[["Pr(>F)"]][1]
+  if (!gated || p_gate < alpha) {{
+    cat("post hoc", posthoc, "ran (gated p", format(p_gate), ")\n")
+    print(summary(pairs(emmeans(a, ~ mode, model = model), adjust = adjust),
+                  infer = c(TRUE, TRUE), level = 1 - alpha))
+  }} else cat("post hoc", posthoc, "not run: gated p", format(p_gate), ">= alpha\n")
   wide <- reshape(w[, c("participant", "mode", "y")], idvar = "participant",
                   timevar = "mode", direction = "wide")
-  print(friedman.test(as.matrix(wide[, -1])))
-  print(pairwise.wilcox.test(w$y, w$mode, paired = TRUE, p.adjust.method = "holm",
-                             exact = FALSE))
+  ft <- friedman.test(as.matrix(wide[, -1]))
+  print(ft)
+  if (!wilcoxon_gated || ft$p.value < alpha) {{
+    print(pairwise.wilcox.test(w$y, w$mode, paired = TRUE, p.adjust.method = "holm",
+                               exact = FALSE))
+  }} else cat("Wilcoxon pairs not run: Friedman p >= alpha\n")
   full <- lmer(y ~ mode + position + (1 | participant), data = d, REML = FALSE)
   null <- lmer(y ~ position + (1 | participant), data = d, REML = FALSE)
   print(anova(null, full))                # likelihood-ratio test of mode (ML fits)
@@ -67,10 +80,14 @@ def analysis_r(
     tests: dict[str, str],
     posthoc: str,
     modes: list[str],
+    gate: str = "auto",
+    posthoc_gate: str = "auto",
 ) -> str:
     """The text of ``analysis.R`` for the planned ``metrics`` (columns of trials.csv),
     their planned ``tests`` (metric -> ``"rm_anova"`` or ``"friedman"``), the post-hoc
-    family and the modes in the study's order."""
+    family and the modes in the study's order; ``gate`` and ``posthoc_gate`` as
+    :func:`analysis.stats.analyse` (the post-hoc pairs behind the omnibus test or not)."""
+    gated = posthoc_gate == "omnibus" or (posthoc_gate == "auto" and posthoc.startswith("lsd"))
     named = ", ".join(f"{m} = {_r_strings([tests[m]])}" for m in metrics)
     return _TEMPLATE.format(
         name=name.replace("\n", " "),
@@ -82,6 +99,10 @@ def analysis_r(
         adjust=_ADJUST[posthoc],
         model="univariate" if posthoc == "lsd_pooled" else "multivariate",
         modes=_r_strings(modes),
+        gate=gate,
+        gated="TRUE" if gated else "FALSE",
+        posthoc_gate=posthoc_gate,
+        wilcoxon_gated="TRUE" if posthoc_gate == "omnibus" else "FALSE",
     )
 
 

@@ -37,7 +37,7 @@ from analysis.presentation import (
 )
 from analysis.r_script import analysis_r
 from analysis.recognition import DECILE_LABELS, describe, html_rows, recognition_tables
-from analysis.stats import analyse
+from analysis.stats import POSTHOC, analyse
 from analysis.tables import apa_anova, format_p
 
 
@@ -107,6 +107,7 @@ def _analyse_metric(
             gate=cfg.gate,
             test=cfg.test_for(metric),
             posthoc=cfg.posthoc,
+            posthoc_gate=cfg.posthoc_gate,
             order=order,
         )
     except ValueError as error:
@@ -199,15 +200,14 @@ def _section(
 
 
 def _write_metric_tables(name: str, result: dict, tables: Path, written: _Written) -> None:
-    """``<metric>_descriptives.csv`` and, when the post-hoc tests ran, ``<metric>_posthoc.csv``."""
+    """``<metric>_descriptives.csv`` and, when post-hoc tests ran, ``<metric>_posthoc.csv``
+    (every family that ran, column ``form``)."""
     desc = pd.DataFrame([{"level": k, **v} for k, v in result["descriptives"].items()])
     written.csv(desc, tables / f"{name}_descriptives.csv")
-    if result["posthoc"]["ran"]:
+    forms = [f for f in POSTHOC if result["posthoc"][f]]
+    if forms:
         ph = pd.concat(
-            [
-                pd.DataFrame(result["posthoc"][form]).assign(form=form)
-                for form in ("lsd_paired", "lsd_pooled")
-            ],
+            [pd.DataFrame(result["posthoc"][form]).assign(form=form) for form in forms],
             ignore_index=True,
         )
         written.csv(ph, tables / f"{name}_posthoc.csv")
@@ -368,6 +368,8 @@ def _write_r_script(data: StudyData, frames: Frames, results: dict, out: Path) -
         tests={m: results[m]["planned"]["test"] for m in planned},
         posthoc=data.config.posthoc,
         modes=list(frames.modes),
+        gate=data.config.gate,
+        posthoc_gate=data.config.posthoc_gate,
     )
     (out / "analysis.R").write_text(text, encoding="utf-8")
 

@@ -364,23 +364,28 @@ def _anova_lines(result: dict, *, alpha: float, gate: str) -> list[str]:
 
 
 def _posthoc_lines(result: dict, alpha: float) -> list[str]:
-    """Both LSD tables, or the line saying they were not run."""
+    """Both LSD tables and the planned Holm or Bonferroni table, each when it ran, or the
+    line saying the planned family was not run."""
     if not result["posthoc"]["ran"]:
         return ["", "Post hoc: not run (the gate did not pass)"]
     anova, posthoc = result["anova"], result["posthoc"]
     confidence = f"{100 * (1 - alpha):g}% CI"
     n = result["n_subjects"]
-    out = [
-        "",
-        f"Fisher's LSD, paired (each pair's own differences, df = {n - 1}; {confidence})",
-    ]
-    out += _pair_table(posthoc["lsd_paired"], alpha)
-    out += [
-        "",
-        f"Fisher's LSD, pooled (MS_error = {_num(anova['ms_error'], 4)}, "
-        f"df = {anova['df_error']}; {confidence})",
-    ]
-    out += _pair_table(posthoc["lsd_pooled"], alpha)
+    out = []
+    if posthoc["lsd_paired"]:
+        out += [
+            "",
+            f"Fisher's LSD, paired (each pair's own differences, df = {n - 1}; {confidence})",
+        ]
+        out += _pair_table(posthoc["lsd_paired"], alpha)
+        out += [
+            "",
+            f"Fisher's LSD, pooled (MS_error = {_num(anova['ms_error'], 4)}, "
+            f"df = {anova['df_error']}; {confidence})",
+        ]
+        out += _pair_table(posthoc["lsd_pooled"], alpha)
+    else:
+        out += ["", "Fisher's LSD: not run (the gate did not pass)"]
     planned = result.get("posthoc_planned", "lsd_paired")
     if planned in ("holm", "bonferroni"):
         m = len(posthoc[planned])
@@ -422,7 +427,7 @@ def _friedman_lines(result: dict, alpha: float) -> list[str]:
     friedman = result["friedman"]
     out = ["", "Friedman test (ranks within subject)", f"  {result['apa']['friedman']}"]
     if not friedman["posthoc"]["ran"]:
-        return out + ["  Wilcoxon signed-rank pairs: not run (Friedman not significant)"]
+        return out + ["  Wilcoxon signed-rank pairs: not run (Friedman not significant, gated)"]
     rows = [
         [
             w["a"],

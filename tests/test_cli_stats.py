@@ -100,6 +100,23 @@ def test_text_summary(capsys):
     assert "not run" in out
 
 
+def test_posthoc_gate_flag_on_bushtucker(capsys):
+    """Bushtucker's GG p is .063: Holm runs on its own by default, and only with
+    --posthoc-gate none for LSD; --posthoc-gate omnibus holds Holm back too."""
+    args = ["stats", "--csv", str(BUSHTUCKER), *FIELD_ARGS, "--posthoc", "holm"]
+    code, out, err = run(capsys, *args)
+    assert code == 0, err
+    assert "Paired t-tests, Holm over 6 pairs" in out and "Fisher's LSD: not run" in out
+    code, out, err = run(capsys, *args, "--posthoc-gate", "omnibus", "--json")
+    assert code == 0 and json.loads(out)["posthoc"]["holm"] == []
+    code, out, err = run(capsys, *args[:-2], "--posthoc-gate", "none", "--json")
+    result = json.loads(out)
+    assert code == 0 and len(result["posthoc"]["lsd_paired"]) == 6
+    assert "family-wise" in err
+    code, out, err = run(capsys, *args, "--posthoc-gate", "never")
+    assert code == 2 and "--posthoc-gate" in err and "auto" in err
+
+
 def test_gate_and_alpha_options_reach_the_analysis(capsys):
     args = ["stats", "--csv", str(BUSHTUCKER), *FIELD_ARGS, "--json"]
     auto = json.loads(run(capsys, *args)[1])

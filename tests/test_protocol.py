@@ -24,6 +24,7 @@ from study.engine.protocol import (
     GATES,
     PHASE_KINDS,
     POSTHOC,
+    POSTHOC_GATES,
     TESTS,
     TIMEOUTS,
     Baseline,
@@ -227,6 +228,7 @@ BAD = [
     ("alpha = 0.05", "alpha = 1.5", "analysis.alpha"),
     ('gate = "auto"', 'gate = "bonferroni"', "analysis.gate"),
     ('posthoc = "lsd_paired"', 'posthoc = "tukey"', "analysis.posthoc"),
+    ('posthoc = "lsd_paired"', 'posthoc_gate = "maybe"', "analysis.posthoc_gate"),
     ('timeouts = "exclude"', 'timeouts = "drop"', "analysis.timeouts"),
     ('"completion_time_s",', '"speed",', "analysis.metrics[0]"),
     ("window = [1280, 720]", "window = [1280]", "ui.window"),
@@ -345,7 +347,9 @@ def test_planned_tests_per_metric():
     )
     text = text.replace('posthoc = "lsd_paired"', 'posthoc = "bonferroni"')
     analysis = parse_protocol(text, "p.toml", known_modes=KNOWN).analysis
-    assert analysis.posthoc == "bonferroni"
+    assert analysis.posthoc == "bonferroni" and analysis.posthoc_gate == "auto"
+    gated = text.replace('posthoc = "bonferroni"', 'posthoc = "holm"\nposthoc_gate = "omnibus"')
+    assert parse_protocol(gated, "p.toml", known_modes=KNOWN).analysis.posthoc_gate == "omnibus"
     assert analysis.test_for("collisions") == "friedman" and analysis.test_for("tlx_raw") == "auto"
     plain = parse_protocol(shipped_text("pilot"), "p.toml", known_modes=KNOWN).analysis
     assert plain.test_for("collisions") == "rm_anova"  # the thesis's test unless declared
@@ -358,6 +362,7 @@ def test_analysis_choices_match_the_analysis_package():
     assert GATES == stats.GATES
     assert TIMEOUTS == analysis_data.TIMEOUTS
     assert POSTHOC == stats.POSTHOC
+    assert POSTHOC_GATES == stats.POSTHOC_GATES
     assert TESTS == stats.TESTS
 
 

@@ -162,3 +162,5 @@ def test_the_r_script_runs_and_agrees_with_the_report(built):
         block = run.stdout.split(f"===== {name} ")[1].split("=====")[0]
         row = re.search(r"^mode\s+\S+\s+\S+\s+\S+\s+\S+\s+(\S+)", block, flags=re.M)
         assert row and float(row[1]) == pytest.approx(results[name]["anova"]["F"], rel=1e-4)
+        ran = results[name]["posthoc"]["ran"]  # the same post-hoc decision as the report
+        assert re.search(r"^post hoc \S+ " + ("ran" if ran else "not run"), block, flags=re.M)

@@ -22,6 +22,7 @@ from hypothesis import strategies as st
 
 from analysis.stats import (
     GATES,
+    POSTHOC,
     analyse,
     descriptives,
     gate_p,
@@ -252,16 +253,13 @@ def test_field_bushtucker_published_values():
     assert sph["violated"] is True
     assert out["greenhouse_geisser"]["eps"] == pytest.approx(0.533, abs=5e-4)
     assert out["greenhouse_geisser"]["p"] == pytest.approx(0.063, abs=5e-4)
-    # auto gate: sphericity violated -> GG p = .063 -> no post hoc
+    # auto gate: sphericity violated -> GG p = .063 -> no LSD (Holm and Bonferroni run)
     assert out["p_gate"] == out["greenhouse_geisser"]["p"]
     assert out["significant"] is False
-    assert out["posthoc"] == {
-        "ran": False,
-        "lsd_paired": [],
-        "lsd_pooled": [],
-        "holm": [],
-        "bonferroni": [],
-    }
+    posthoc = out["posthoc"]
+    assert (posthoc["ran"], posthoc["gated"], posthoc["posthoc_gate"]) == (False, True, "auto")
+    assert posthoc["lsd_paired"] == posthoc["lsd_pooled"] == []
+    assert len(posthoc["holm"]) == len(posthoc["bonferroni"]) == 6
 
 
 def test_constant_per_subject_changes_nothing(seed):
@@ -448,6 +446,39 @@ def test_gate_consistency_on_data(rng):
             n_pairs = k * (k - 1) // 2 if out["significant"] else 0
             assert len(out["posthoc"]["lsd_paired"]) == len(out["posthoc"]["lsd_pooled"])
             assert len(out["posthoc"]["lsd_paired"]) == n_pairs
+
+
+def test_posthoc_gate_runs_holm_and_bonferroni_on_their_own(rng):
+    """Whatever the omnibus p: under "auto" the LSD forms run only when the gate passes and
+    Holm, Bonferroni and Friedman's Wilcoxon-Holm pairs always; "omnibus" gates every family,
+    "none" none (with a warning for unprotected LSD). Equal level means (F = 0: the gate
+    fails) and a large effect (it passes), so both outcomes occur."""
+    seen = set()
+    noise = random_design(rng, 8, 3, effect=0.0)
+    null = noise - noise.mean(axis=0) + noise.mean()
+    strong = null + np.array([0.0, 10.0, 20.0]) * noise.std()
+    for y in (null, strong):
+        for planned in POSTHOC:
+            out = analyse(to_long(y), **COLUMNS, posthoc=planned, mixed=False)
+            sig, ph = out["significant"], out["posthoc"]
+            seen.add(sig)
+            assert len(ph["lsd_paired"]) == len(ph["lsd_pooled"]) == (3 if sig else 0)
+            assert len(ph["holm"]) == len(ph["bonferroni"]) == 3
+            assert ph["gated"] == planned.startswith("lsd")
+            assert ph["ran"] == (sig or not ph["gated"])
+            assert len(out["friedman"]["posthoc"]["wilcoxon_holm"]) == 3
+            gated = analyse(to_long(y), **COLUMNS, posthoc=planned, posthoc_gate="omnibus")
+            assert all(len(gated["posthoc"][f]) == (3 if sig else 0) for f in POSTHOC)
+            f_sig = gated["friedman"]["significant"]
+            assert len(gated["friedman"]["posthoc"]["wilcoxon_holm"]) == (3 if f_sig else 0)
+            free = analyse(to_long(y), **COLUMNS, posthoc=planned, posthoc_gate="none")
+            assert all(len(free["posthoc"][f]) == 3 for f in POSTHOC)
+            assert any("family-wise" in w for w in free["warnings"]) == planned.startswith("lsd")
+            fast = analyse(to_long(y), **COLUMNS, posthoc=planned, decisions_only=True)
+            assert fast["posthoc"][planned] == out["posthoc"][planned]
+    assert seen == {True, False}
+    with pytest.raises(ValueError, match="posthoc_gate 'sometimes'.*auto, omnibus, none"):
+        analyse(to_long(y), **COLUMNS, posthoc_gate="sometimes")
 
 
 def test_spherical_data_gives_w_and_eps_one(rng):

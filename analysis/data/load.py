@@ -66,6 +66,8 @@ class AnalysisConfig:
     gate : which p gates the post-hoc tests ([analysis] gate, "auto").
     posthoc : the post-hoc family the report leads with ([analysis] posthoc, "lsd_paired";
         also "lsd_pooled", "holm", "bonferroni").
+    posthoc_gate : which post-hoc families wait for the omnibus test ([analysis]
+        posthoc_gate, "auto": the LSD forms only; "omnibus", "none").
     metrics : the protocol's planned metrics ([analysis] metrics).
     secondary_baseline_level : the baseline as a level of secondary metrics.
     collision_penalty_s : [s] per collision in the score ([scoring], 60).
@@ -82,6 +84,7 @@ class AnalysisConfig:
     alpha: float = 0.05
     gate: str = "auto"
     posthoc: str = "lsd_paired"
+    posthoc_gate: str = "auto"
     metrics: tuple[str, ...] = ()
     secondary_baseline_level: bool = True
     collision_penalty_s: float = 60.0
@@ -164,6 +167,7 @@ def _config(doc: dict[str, Any], source: str) -> AnalysisConfig:
         alpha=float(analysis.get("alpha", 0.05)),
         gate=str(analysis.get("gate", "auto")),
         posthoc=str(analysis.get("posthoc", "lsd_paired")),
+        posthoc_gate=str(analysis.get("posthoc_gate", "auto")),
         metrics=tuple(str(m) for m in analysis.get("metrics", ())),
         secondary_baseline_level=bool(analysis.get("secondary_baseline_level", True)),
         collision_penalty_s=float(scoring.get("collision_penalty_s", 60.0)),

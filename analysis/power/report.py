@@ -28,7 +28,7 @@ from matplotlib.patches import Patch
 
 from analysis import figures as fig
 from analysis.data import BASELINE
-from analysis.methods import _GATES, _POSTHOC_WORDS
+from analysis.methods import _GATES, _POSTHOC_WORDS, posthoc_gate_words
 from analysis.power.resample import OMNIBUS
 from analysis.power.summary import describe_n
 from analysis.presentation import descriptive_rows
@@ -250,20 +250,29 @@ def _analysis_sentence(result: Mapping) -> str:
         f"{_and(names)} by {_test_words(t, s['gate'])}" for t, names in by_test.items()
     )
     ranks = set(by_test) - {"rm_anova"}
+    gate = s.get("posthoc_gate", "auto")
     friedman = (
-        "; after Friedman's test, by Wilcoxon signed-rank tests with Holm's correction"
+        "; with Friedman's test, by Wilcoxon signed-rank tests with Holm's correction "
+        + ("where it rejected" if gate == "omnibus" else "whatever it gave")
         if ranks
         else ""
     )
     baseline = any(BASELINE in m["levels"] for m in result["metrics"])
     lsd = s["posthoc"].startswith("lsd")
+    gated = gate == "omnibus" or (gate == "auto" and lsd)
+    why = (
+        ", so no such pair rejects more often than its omnibus test"
+        if gated
+        else ", each pair on its own (posthoc_gate "
+        f"{gate}: {posthoc_gate_words(s['posthoc'], gate)})"
+    )
     return (
         f"Each study was analysed as the protocol plans, at \u03b1 = {s['alpha']:g}: {tests}"
         + ("; the baseline a further level of the secondary-task metrics" if baseline else "")
-        + f". Pairs of levels were compared by {_POSTHOC_WORDS.get(s['posthoc'], s['posthoc'])} "
-        "only where the omnibus test rejected"
-        + (" (Fisher's LSD is protected by it, thesis Sec. 7.6.2)" if lsd else "")
-        + f"{friedman}, so no pair rejects more often than its omnibus test."
+        + f". Pairs of levels were compared by {_POSTHOC_WORDS.get(s['posthoc'], s['posthoc'])}"
+        + (" only where the omnibus test rejected" if gated else "")
+        + (" (Fisher's LSD is protected by it, thesis Sec. 7.6.2)" if lsd and gated else "")
+        + f"{friedman}{why}."
     )
 
 
@@ -530,18 +539,34 @@ def render_html(result: Mapping, panels: Sequence[Mapping]) -> str:
         undefined=jinja2.StrictUndefined,
     )
     s = result["settings"]
+    from_pilot = result.get("source") == "pilot"
+    if from_pilot:  # asa power --from-study (issue 39)
+        from analysis.power import pilot_text
+
+        text = {
+            "methods": pilot_text.pilot_methods(result),
+            "tables": pilot_text.pilot_settings_tables(result),
+            "limitations": pilot_text.pilot_limitations(result),
+            "spread": pilot_text.spread_rows(result),
+        }
+    else:
+        text = {
+            "methods": methods_paragraph(result),
+            "tables": settings_tables(result),
+            "limitations": limitations(result),
+            "spread": [],
+        }
     return env.get_template("power.html.j2").render(
         result=result,
+        from_pilot=from_pilot,
         protocol=result["protocol"],
         settings=s,
-        methods=methods_paragraph(result),
         summary=result["summary"],
         sizes=s["sizes"],
         rows=summary_rows(result),
         panels=panels,
-        effects=effect_sections(result),
-        tables=settings_tables(result),
-        limitations=limitations(result),
+        effects=[e for e in effect_sections(result) if "@" not in e["metric"]],
+        **text,
         curves_png=f"{CURVES_STEM}.png",
         curves_svg=f"{CURVES_STEM}.svg",
     )

@@ -37,7 +37,7 @@ class PlannedTests:
     ----------
     metrics : metric -> its levels in report order (modes in protocol order, then the
         baseline for secondary-task metrics).
-    alpha, gate, posthoc : as :func:`analysis.stats.analyse`.
+    alpha, gate, posthoc, posthoc_gate : as :func:`analysis.stats.analyse`.
     tests : metric -> planned omnibus test ("rm_anova", "friedman" or "auto").
     """
 
@@ -46,6 +46,7 @@ class PlannedTests:
     gate: str = "auto"
     posthoc: str = "lsd_paired"
     tests: Mapping[str, str] = field(default_factory=dict)
+    posthoc_gate: str = "auto"
 
     def analyse(self, frame: pd.DataFrame, metric: str, **options) -> dict:
         """:func:`analysis.stats.analyse` of a long frame of ``metric`` (columns
@@ -60,6 +61,7 @@ class PlannedTests:
             gate=self.gate,
             test=self.tests.get(metric, "rm_anova"),
             posthoc=self.posthoc,
+            posthoc_gate=self.posthoc_gate,
             **options,
         )
 
@@ -141,8 +143,9 @@ def study_rng(seed: int, n: int, study: int) -> np.random.Generator:
 
 def decisions(result: dict, planned: PlannedTests, metric: str) -> dict[str, bool]:
     """Test name -> rejected, from one :func:`analysis.stats.analyse` object: the planned
-    omnibus test, and each pair by the planned family (only run when the omnibus test
-    rejects: Fisher's LSD is protected by it, thesis Sec. 7.6.2)."""
+    omnibus test, and each pair by the planned family (behind the omnibus test when the
+    family is gated: Fisher's LSD by default, thesis Sec. 7.6.2; Holm and Bonferroni on
+    their own, see :func:`analysis.stats.posthoc_gated`)."""
     plan = result["planned"]
     if plan["test"] == "rm_anova":
         rows = result["posthoc"][result["posthoc_planned"]]

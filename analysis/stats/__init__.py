@@ -13,7 +13,16 @@ long-format DataFrame (one row per subject and level) and the names of its three
 from __future__ import annotations
 
 from analysis.stats.anova import rm_anova
-from analysis.stats.chain import GATES, POSTHOC, analyse, gate_p, gate_source, lsd_warning
+from analysis.stats.chain import (
+    GATES,
+    POSTHOC,
+    POSTHOC_GATES,
+    analyse,
+    gate_p,
+    gate_source,
+    lsd_warning,
+    posthoc_gated,
+)
 from analysis.stats.design import RepeatedMeasures, descriptives, repeated_measures
 from analysis.stats.nonparametric import TESTS, choose_test
 from analysis.stats.posthoc import PAIR_COLUMNS, lsd_paired, lsd_pooled, paired_adjusted
@@ -23,6 +32,7 @@ __all__ = [
     "GATES",
     "PAIR_COLUMNS",
     "POSTHOC",
+    "POSTHOC_GATES",
     "TESTS",
     "RepeatedMeasures",
     "analyse",
@@ -36,6 +46,7 @@ __all__ = [
     "lsd_warning",
     "mauchly",
     "paired_adjusted",
+    "posthoc_gated",
     "repeated_measures",
     "rm_anova",
 ]

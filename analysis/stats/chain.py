@@ -20,6 +20,10 @@ from analysis.stats.sphericity import _gg, _mauchly
 
 GATES: tuple[str, ...] = ("auto", "uncorrected", "greenhouse_geisser")
 POSTHOC: tuple[str, ...] = ("lsd_paired", "lsd_pooled", "holm", "bonferroni")
+# Whether a post-hoc family runs only after the omnibus test rejects: "auto" gates Fisher's
+# LSD (protected by the omnibus test, thesis Sec. 7.6.2) and not Holm or Bonferroni (which
+# control the family-wise error on their own); "omnibus" gates every family, "none" none.
+POSTHOC_GATES: tuple[str, ...] = ("auto", "omnibus", "none")
 # Steiger (2004): a two-sided 1 - 2 alpha interval of eta squared matches the F test.
 ETA_CI_LEVEL_OF_ALPHA = "1 - 2 alpha"
 
@@ -68,6 +72,25 @@ def _check_gate(gate: str) -> None:
         raise ValueError(f"gate {gate!r} is not allowed; choose one of {', '.join(GATES)}")
 
 
+def posthoc_gated(family: str, posthoc_gate: str = "auto") -> bool:
+    """Whether the post-hoc ``family`` runs only when the omnibus test rejects.
+
+    ``family`` is one of :data:`POSTHOC` or ``"wilcoxon_holm"`` (Friedman's pairs);
+    ``posthoc_gate`` one of :data:`POSTHOC_GATES`. With ``"auto"`` only the LSD forms are
+    gated: Fisher's LSD controls the family-wise error (for three levels) only behind the
+    omnibus test (Fisher 1935; thesis Sec. 7.6.2), Holm (1979) and Bonferroni control it on
+    their own. In R: emmeans' ``pairs(..., adjust = "holm")`` is not conditional on any F.
+    """
+    if posthoc_gate not in POSTHOC_GATES:
+        raise ValueError(
+            f"posthoc_gate {posthoc_gate!r} is not allowed; choose one of "
+            f"{', '.join(POSTHOC_GATES)}"
+        )
+    if posthoc_gate == "auto":
+        return family.startswith("lsd")
+    return posthoc_gate == "omnibus"
+
+
 def _pairs(frame: pd.DataFrame) -> list[dict]:
     return _clean(frame.to_dict(orient="records"))
 
@@ -83,6 +106,7 @@ def analyse(
     sphericity_alpha: float = 0.05,
     test: str = "rm_anova",
     posthoc: str = "lsd_paired",
+    posthoc_gate: str = "auto",
     order: str | None = None,
     mixed: bool = True,
     decisions_only: bool = False,
@@ -107,6 +131,10 @@ def analyse(
         both are computed, the planned one leads.
     posthoc : {"lsd_paired", "lsd_pooled", "holm", "bonferroni"}
         The planned post-hoc family of the RM-ANOVA path (every family is computed).
+    posthoc_gate : {"auto", "omnibus", "none"}
+        Which post-hoc families wait for their omnibus test to reject, see
+        :func:`posthoc_gated` (the RM-ANOVA's families behind its gate, Friedman's
+        Wilcoxon-Holm pairs behind Friedman's test).
     order : str, optional
         Column of each cell's position in the subject's order (1, 2, ...): enables the order
         checks and the position covariate of the mixed model.
@@ -127,8 +155,9 @@ def analyse(
         ``n_subjects``, ``levels``, ``descriptives`` {level: {mean, sd, se, n}}, ``anova``
         (see :func:`rm_anova`), ``sphericity`` (see :func:`mauchly`), ``greenhouse_geisser``
         {eps, p}, ``p_gate``, ``p_gate_source``, ``significant`` (the RM-ANOVA's gate),
-        ``posthoc`` {ran, lsd_paired, lsd_pooled, holm, bonferroni} (pair lists empty
-        unless ``significant``; holm/bonferroni rows add ``p_unc``), ``warnings``,
+        ``posthoc`` {ran, gated, posthoc_gate, lsd_paired, lsd_pooled, holm, bonferroni}
+        (``ran``/``gated``: the planned family; a gated family's list is empty unless
+        ``significant``; holm/bonferroni rows add ``p_unc``), ``warnings``,
         ``dropped_subjects``. Issue 21's keys are documented in docs/algorithms.md
         ("Issue 21 keys"): ``planned``, ``posthoc_planned``, ``posthoc_warning``,
         ``effect_sizes``, ``pairs``, ``assumptions``, ``friedman``, ``mixed``, ``order``,
@@ -140,18 +169,25 @@ def analyse(
     In SPSS: GLM Repeated Measures with Descriptive statistics and Compare main effects (LSD).
     """
     _check_options(alpha, sphericity_alpha, gate, test, posthoc)
+    gated = posthoc_gated(posthoc, posthoc_gate)
     data = repeated_measures(df, dv=dv, within=within, subject=subject)
     families = (posthoc,) if decisions_only else POSTHOC
     result = _thesis_chain(
         data, within, alpha=alpha, gate=gate, sphericity_alpha=sphericity_alpha,
-        families=families,
+        families=families, planned=posthoc, posthoc_gate=posthoc_gate,
     )  # fmt: skip
+    if not gated and posthoc.startswith("lsd"):
+        result["warnings"].append(_UNPROTECTED_LSD)
     if decisions_only:
-        return _clean(_decisions(data, result, alpha=alpha, test=test, posthoc=posthoc))
+        return _clean(
+            _decisions(
+                data, result, alpha=alpha, test=test, posthoc=posthoc, posthoc_gate=posthoc_gate
+            )
+        )
     notes = result["warnings"]
     result.update(_additions(data, result, alpha=alpha, posthoc=posthoc, notes=notes))
     planned, reason = choose_test(data.y, requested=test)
-    result["friedman"] = _friedman_block(data, alpha)
+    result["friedman"] = _friedman_block(data, alpha, posthoc_gate)
     result["planned"] = _planned(result, planned, test, reason, alpha)
     if planned == "rm_anova":
         notes.extend(_assumption_notes(result["assumptions"], result["posthoc_warning"]))
@@ -174,12 +210,25 @@ def _check_options(
         raise ValueError(f"posthoc {posthoc!r} is not allowed; choose one of {', '.join(POSTHOC)}")
 
 
+_UNPROTECTED_LSD = (
+    "Fisher's LSD without the omnibus gate (posthoc_gate = none) does not control the "
+    "family-wise error rate"
+)
+
+
 def _decisions(
-    data: RepeatedMeasures, result: dict, *, alpha: float, test: str, posthoc: str
+    data: RepeatedMeasures,
+    result: dict,
+    *,
+    alpha: float,
+    test: str,
+    posthoc: str,
+    posthoc_gate: str,
 ) -> dict:
     """``result`` (the thesis chain) with the planned test, the rest of the keys None."""
     planned, reason = choose_test(data.y, requested=test)
-    result["friedman"] = _friedman_block(data, alpha) if planned == "friedman" else None
+    friedman = _friedman_block(data, alpha, posthoc_gate) if planned == "friedman" else None
+    result["friedman"] = friedman
     result["planned"] = _planned(result, planned, test, reason, alpha)
     result.update(
         posthoc_planned=posthoc,
@@ -197,9 +246,12 @@ def _thesis_chain(
     gate: str,
     sphericity_alpha: float,
     families: tuple[str, ...] = POSTHOC,
+    planned: str = "lsd_paired",
+    posthoc_gate: str = "auto",
 ) -> dict:
     """Descriptives, ANOVA, sphericity, GG, gate and the post-hoc ``families`` (thesis
-    7.6.2; the others empty)."""
+    7.6.2; the others empty): a family gated by ``posthoc_gate`` only when the gate
+    passes."""
     y = data.y
     anova = _anova(y)
     sphericity = _mauchly(y, alpha=sphericity_alpha)
@@ -209,8 +261,10 @@ def _thesis_chain(
     notes = [*data.warnings, *_degenerate_notes(anova.ss_error, sphericity, y.shape)]
     p = gate_p(anova_out, sphericity, gg_out, gate=gate)
     significant = p is not None and p < alpha
-    pairs = _posthoc(data, alpha, notes, families) if significant else {}
+    runs = tuple(f for f in families if significant or not posthoc_gated(f, posthoc_gate))
+    pairs = _posthoc(data, alpha, notes, runs) if runs else {}
     pairs = {name: pairs.get(name, []) for name in POSTHOC}
+    gated = posthoc_gated(planned, posthoc_gate)
     return {
         "n_subjects": int(y.shape[0]),
         "levels": list(data.levels),
@@ -221,7 +275,12 @@ def _thesis_chain(
         "p_gate": p,
         "p_gate_source": gate_source(sphericity, gate=gate),
         "significant": bool(significant),
-        "posthoc": {"ran": bool(significant), **pairs},
+        "posthoc": {
+            "ran": bool(significant or not gated),
+            "gated": gated,
+            "posthoc_gate": posthoc_gate,
+            **pairs,
+        },
         "warnings": notes,
         "dropped_subjects": list(data.dropped_subjects),
     }
@@ -319,12 +378,18 @@ def _additions(
     }
 
 
-def _friedman_block(data: RepeatedMeasures, alpha: float) -> dict:
-    """Friedman's test, Kendall's W and (when it rejects) the Wilcoxon-Holm pairs."""
+def _friedman_block(data: RepeatedMeasures, alpha: float, posthoc_gate: str = "auto") -> dict:
+    """Friedman's test, Kendall's W and the Wilcoxon-Holm pairs (when Friedman rejects, or
+    always when Holm is not gated, see :func:`posthoc_gated`)."""
     out = friedman(data.y)
     significant = out["p"] is not None and out["p"] < alpha
-    pairs = wilcoxon_holm(data.y, data.levels, alpha=alpha) if significant else []
-    out.update(significant=significant, posthoc={"ran": significant, "wilcoxon_holm": pairs})
+    gated = posthoc_gated("wilcoxon_holm", posthoc_gate)
+    ran = significant or not gated
+    pairs = wilcoxon_holm(data.y, data.levels, alpha=alpha) if ran else []
+    out.update(
+        significant=significant,
+        posthoc={"ran": ran, "gated": gated, "wilcoxon_holm": pairs},
+    )
     return out
 
 

@@ -38,8 +38,19 @@ from study.cli import PARTICIPANTS, SEED, WORKERS, flag_errors
     show_default=True,
     help="Shipped protocol name or TOML file.",
 )
+@click.option(
+    "--population",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="A population file (TOML, e.g. from asa calibrate); default the platform's model.",
+)
 def pilot(
-    out: Path | None, participants: int, workers: int | None, seed: int, protocol: str
+    out: Path | None,
+    participants: int,
+    workers: int | None,
+    seed: int,
+    protocol: str,
+    population: Path | None,
 ) -> None:
     """Run a synthetic pilot study of the thesis protocol and write its report.
 
@@ -49,6 +60,9 @@ def pilot(
       asa pilot --participants 6 --out quick/    # a smaller one
     """
     from study.jobs.pilot import pilot_lines, run_pilot
+    from study.participants.population_file import load_population
+
+    people = load_population(population) if population is not None else None
 
     def say(line: str) -> None:
         click.echo(f"asa pilot: {line}", err=True)
@@ -61,6 +75,7 @@ def pilot(
             seed=seed,
             protocol=protocol,
             progress=say,
+            population=people,
         )
     if not result.check.clean:
         click.echo(result.check.text())

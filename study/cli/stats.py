@@ -12,7 +12,7 @@ from pathlib import Path
 
 import click
 
-from analysis.stats import GATES, POSTHOC, TESTS, analyse
+from analysis.stats import GATES, POSTHOC, POSTHOC_GATES, TESTS, analyse
 from analysis.tables import SameColumnError, format_summary, read_long_csv
 
 
@@ -59,6 +59,15 @@ from analysis.tables import SameColumnError, format_summary, read_long_csv
     "protected for three levels only; holm or bonferroni beyond.",
 )
 @click.option(
+    "--posthoc-gate",
+    type=click.Choice(POSTHOC_GATES),
+    default="auto",
+    show_default=True,
+    help="Which post-hoc families run only after the omnibus test rejects: auto = the LSD "
+    "forms (Fisher's protection) while Holm, Bonferroni and Friedman's Wilcoxon-Holm pairs "
+    "always run; omnibus = every family; none = no family (unprotected LSD).",
+)
+@click.option(
     "--order",
     default=None,
     help="Column of each row's position in the subject's order (1, 2, ...): adds the "
@@ -74,6 +83,7 @@ def stats(
     gate: str,
     test: str,
     posthoc: str,
+    posthoc_gate: str,
     order: str | None,
 ) -> None:
     """Statistics of DV by WITHIN for any long-format CSV: descriptives, repeated-measures
@@ -93,7 +103,10 @@ def stats(
             f"{csv_path}: --dv, --within and --subject must name three different columns, "
             f"got {dv!r}, {within!r}, {subject!r}"
         ) from None
-    options = {"alpha": alpha, "gate": gate, "test": test, "posthoc": posthoc, "order": order}
+    options = {
+        "alpha": alpha, "gate": gate, "test": test, "posthoc": posthoc,
+        "posthoc_gate": posthoc_gate, "order": order,
+    }  # fmt: skip
     try:
         result = analyse(frame, dv=dv, within=within, subject=subject, **options)
     except ValueError as error:

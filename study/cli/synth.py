@@ -61,6 +61,12 @@ from study.cli import PARTICIPANTS, SEED, WORKERS, db_option, flag_errors
     help="The site of a multi-site study the participants belong to (codes <site>-P01 ...; "
     "required when the protocol has [study] sites) [default: $ASA_SITE].",
 )
+@click.option(
+    "--population",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="A population file (TOML, e.g. from asa calibrate); default the platform's model.",
+)
 def synth(
     protocol: str,
     participants: int | None,
@@ -71,6 +77,7 @@ def synth(
     no_recordings: bool,
     force: bool,
     site: str | None,
+    population: Path | None,
 ) -> None:
     """Run every participant's session of a protocol with synthetic participants.
 
@@ -82,7 +89,9 @@ def synth(
     from study.engine.protocol import load_protocol
     from study.engine.sites import SITE_ENV
     from study.jobs.synth import format_summary, run_synthetic_study, sanity_summary
+    from study.participants.population_file import load_population
 
+    people = load_population(population) if population is not None else None
     p = load_protocol(protocol)
     n = participants if participants is not None else p.study.participants
     w = workers if workers is not None else (os.cpu_count() or 1)
@@ -98,6 +107,7 @@ def synth(
                 record=not no_recordings,
                 progress=lambda line: click.echo(line, err=True),
                 force=force,
+                population=people,
                 site=site if site is not None else os.environ.get(SITE_ENV) or None,
             )
     except ValueError as error:  # the library names its parameter, the user types a flag

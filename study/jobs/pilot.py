@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from study.data.dbtools import CheckReport
+from study.participants.population import Population
 
 
 @dataclass(frozen=True, slots=True)
@@ -53,6 +54,7 @@ def run_pilot(
     seed: int = 0,
     protocol: str | Path = "thesis-7-6",
     progress: Callable[[str], None] | None = None,
+    population: Population | None = None,
 ) -> PilotResult:
     """Run a synthetic pilot study of ``protocol`` into a new folder and report on it.
 
@@ -71,6 +73,8 @@ def run_pilot(
         A shipped protocol's name or a protocol file.
     progress : callable, optional
         Receives one line per step.
+    population : Population, optional
+        The synthetic population model; default ``Population()``.
 
     Returns
     -------
@@ -95,8 +99,9 @@ def run_pilot(
     db = out / "pilot.db"
     say(f"{participants} synthetic participants of {p.name} with {w} workers into {out}/")
     study = run_synthetic_study(
-        p, db, participants=participants, seed=seed, workers=w, progress=say
-    )
+        p, db, participants=participants, seed=seed, workers=w, progress=say,
+        population=population,
+    )  # fmt: skip
     say("checking the database")
     report = check(db)
     say("writing the report")

@@ -77,6 +77,9 @@ class Population:
     slowdown_range: tuple[float, float] = (1.1, 1.6)
     error_factor_range: tuple[float, float] = (1.0, 2.5)
     age_range: tuple[int, int] = (18, 45)  # [years]
+    tlx_bias_mean: float = 0.0  # [points] mean of the people's NASA-TLX bias
+    tlx_bias_sd: float = 8.0  # [points] its sd between people
+    tlx_gain_range: tuple[float, float] = (0.7, 1.3)  # use of the scale's range
 
     def sample(self, rng: np.random.Generator) -> ParticipantParams:
         """One person.
@@ -102,6 +105,7 @@ class Population:
         e_lo, e_hi = self.error_range
         s_lo, s_hi = self.slowdown_range
         f_lo, f_hi = self.error_factor_range
+        g_lo, g_hi = self.tlx_gain_range
         style = DISTRACTIONS[int(np.searchsorted(np.cumsum(self.distraction_p), u[2] * 0.99999))]
         answer = self.answer_time_median_s * math.exp(
             self.answer_time_sigma * rng.standard_normal()
@@ -123,8 +127,8 @@ class Population:
             error_rate=round(float(e_lo + (e_hi - e_lo) * u[7]), 4),
             dual_task_slowdown=round(float(s_lo + (s_hi - s_lo) * u[8]), 4),
             dual_task_error_factor=round(float(f_lo + (f_hi - f_lo) * u[9]), 4),
-            tlx_bias=round(float(8.0 * rng.standard_normal()), 3),
-            tlx_gain=round(float(0.7 + 0.6 * u[10]), 4),
+            tlx_bias=round(float(self.tlx_bias_mean + self.tlx_bias_sd * rng.standard_normal()), 3),
+            tlx_gain=round(float(g_lo + (g_hi - g_lo) * u[10]), 4),
             tlx_noise=round(float(3.0 + 5.0 * u[11]), 4),
             tlx_importance=tuple(round(float(w), 5) for w in importance),
             age=int(a_lo + int(u[12] * (a_hi - a_lo + 1))),

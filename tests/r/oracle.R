@@ -10,7 +10,8 @@
 # r-cran-emmeans r-cran-lme4 r-cran-lmertest r-cran-jsonlite). The datasets come from
 # tests/r/make_datasets.py (seeded) and Field's Bushtucker data.
 # Settings as `asa stats` defaults: alpha = .05, gate auto (Greenhouse-Geisser p when
-# Mauchly's p < .05), eta squared CI 1 - 2 alpha, pair CIs 1 - alpha.
+# Mauchly's p < .05), posthoc_gate auto (LSD behind the gate; Holm, Bonferroni and the
+# Wilcoxon-Holm pairs always), eta squared CI 1 - 2 alpha, pair CIs 1 - alpha.
 
 suppressPackageStartupMessages({
   library(afex); library(emmeans); library(lme4); library(jsonlite)
@@ -135,8 +136,9 @@ nonparametric <- function(wide, levels) {
   n <- nrow(wide); k <- ncol(wide); chi2 <- unname(ft$statistic)
   out <- list(chi2 = chi2, df = k - 1, p = ft$p.value, kendall_w = chi2 / (n * (k - 1)), n = n,
               significant = ft$p.value < alpha)
-  out$posthoc <- list(ran = out$significant,
-                      wilcoxon_holm = if (out$significant) wilcoxon_holm(wide, levels) else list())
+  # posthoc_gate "auto": Holm controls the family-wise error on its own, so the Wilcoxon
+  # pairs do not wait for Friedman's test (docs/decisions.md, "Post-hoc gate")
+  out$posthoc <- list(ran = TRUE, gated = FALSE, wilcoxon_holm = wilcoxon_holm(wide, levels))
   out
 }
 
@@ -189,11 +191,12 @@ golden <- function(m) {
                                            s = factor(rep(rownames(wide), ncol(wide))),
                                            w = factor(rep(levels, each = n)))))
   none <- list()
-  posthoc <- list(ran = significant,
+  # posthoc_gate "auto": Fisher's LSD only behind the gate; Holm and Bonferroni always
+  posthoc <- list(ran = significant, gated = TRUE, posthoc_gate = "auto",
     lsd_paired = if (significant) family(o$a, "multivariate", "none") else none,
     lsd_pooled = if (significant) family(o$a, "univariate", "none") else none,
-    holm = if (significant) family(o$a, "multivariate", "holm") else none,
-    bonferroni = if (significant) family(o$a, "multivariate", "bonferroni") else none)
+    holm = family(o$a, "multivariate", "holm"),
+    bonferroni = family(o$a, "multivariate", "bonferroni"))
   mm <- mixed_models(d, levels)
   pkgs <- c("afex", "emmeans", "lme4", "jsonlite")
   out <- list(

@@ -51,6 +51,7 @@ from study.engine.protocol.types import (
     ON_FAIL,
     PHASE_KINDS,
     POSTHOC,
+    POSTHOC_GATES,
     PRACTICE_ORDERS,
     ROUTE_POINTS,
     TESTS,
@@ -302,6 +303,7 @@ def _analysis(r: FieldReader) -> AnalysisSettings:
         alpha=alpha,
         gate=r.string("gate", "auto", allowed=GATES),
         posthoc=r.string("posthoc", "lsd_paired", allowed=POSTHOC),
+        posthoc_gate=r.string("posthoc_gate", "auto", allowed=POSTHOC_GATES),
         metrics=_string_list(
             r,
             "metrics",

@@ -33,6 +33,7 @@ TESTS: tuple[str, ...] = ("rm_anova", "friedman", "auto")
 # analysis.stats.GATES, repeated so that loading a protocol does not import scipy and pandas
 # (about 1.5 s); tests/test_protocol.py checks that the two agree.
 GATES: tuple[str, ...] = ("auto", "uncorrected", "greenhouse_geisser")
+POSTHOC_GATES: tuple[str, ...] = ("auto", "omnibus", "none")  # analysis.stats.POSTHOC_GATES
 TLX_WEIGHTS: tuple[str, ...] = ("per_trial", "once", "raw")
 AFTER_TRIAL_INSTRUMENTS: tuple[str, ...] = (nasa_tlx.INSTRUMENT_ID,)
 EXPERIENCE_INSTRUMENTS: tuple[str, ...] = (experience_q.INSTRUMENT_ID,)
@@ -229,6 +230,8 @@ class AnalysisSettings:
     timeouts: str  # TIMEOUTS: timed-out trials' completion time and score
     test: str = "rm_anova"  # TESTS: the planned omnibus test of every metric
     tests: Mapping[str, str] = field(default_factory=dict)  # metric -> TESTS, overrides test
+    # POSTHOC_GATES: which post-hoc families wait for the omnibus test (auto: LSD only)
+    posthoc_gate: str = "auto"
 
     def test_for(self, metric: str) -> str:
         """The planned omnibus test of ``metric`` (its own entry, else ``test``)."""

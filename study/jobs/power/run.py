@@ -34,7 +34,7 @@ from analysis.power import (
 )
 from sim.limits import MAX_COUNT, MAX_SEED
 from study.engine.counterbalance import SlotOrders, cycle_length
-from study.engine.protocol import Protocol, load_protocol
+from study.engine.protocol import POSTHOC_GATES, Protocol, load_protocol
 from study.jobs.power.bank import BANK_FILE, BankFile, bank_jobs, bank_root, run_entry
 from study.jobs.power.cluster import dask_engine
 from study.participants.synthetic import Population
@@ -55,6 +55,7 @@ class PowerSettings:
     workers: int = 2
     resume: bool = False
     population: Population = dataclasses.field(default_factory=Population)
+    posthoc_gate: str | None = None  # analysis.stats.POSTHOC_GATES; None: the protocol's
 
 
 @dataclass(frozen=True, slots=True)
@@ -81,6 +82,10 @@ def check_settings(s: PowerSettings) -> PowerSettings:
     ):
         if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
             raise ValueError(f"{flag}: must be an integer in {low}..{high}, got {value!r}")
+    if s.posthoc_gate is not None and s.posthoc_gate not in POSTHOC_GATES:
+        raise ValueError(
+            f"--posthoc-gate: must be one of {', '.join(POSTHOC_GATES)}, got {s.posthoc_gate!r}"
+        )
     if max(sizes) > s.bank:
         raise ValueError(
             f"--sizes: N = {max(sizes)} is larger than the bank ({s.bank} participants); "
@@ -140,7 +145,7 @@ def run_power(
             entries, outcomes = bank.frames(s.bank)
             for n in s.sizes:  # bank entry i drove slot i's order: always enough
                 check_size(slot_pools(entries, slots), slots, n)
-            planned = _planned(proto, outcomes)
+            planned = _planned(proto, outcomes, s.posthoc_gate)
             t0 = time.perf_counter()
             batches = _resample(engine.client, outcomes, entries, planned, s, slots, say)
             resample_s = time.perf_counter() - t0
@@ -189,8 +194,9 @@ def build_bank(client, bank: BankFile, proto: Protocol, s: PowerSettings, say: P
     return time.perf_counter() - start
 
 
-def _planned(proto: Protocol, outcomes) -> PlannedTests:
-    """The planned tests of every metric in the bank, levels in report order."""
+def _planned(proto: Protocol, outcomes, posthoc_gate: str | None = None) -> PlannedTests:
+    """The planned tests of every metric in the bank, levels in report order;
+    ``posthoc_gate`` overrides the protocol's."""
     a = proto.analysis
     metrics = {}
     for metric in a.metrics:
@@ -199,7 +205,10 @@ def _planned(proto: Protocol, outcomes) -> PlannedTests:
         if len(levels) >= 2:
             metrics[metric] = tuple(levels)
     tests = {m: a.test_for(m) for m in metrics}
-    return PlannedTests(metrics, alpha=a.alpha, gate=a.gate, posthoc=a.posthoc, tests=tests)
+    return PlannedTests(
+        metrics, alpha=a.alpha, gate=a.gate, posthoc=a.posthoc, tests=tests,
+        posthoc_gate=posthoc_gate if posthoc_gate is not None else a.posthoc_gate,
+    )  # fmt: skip
 
 
 def _resample(
@@ -279,6 +288,7 @@ def _result(
             "alpha": a.alpha,
             "gate": a.gate,
             "posthoc": a.posthoc,
+            "posthoc_gate": planned.posthoc_gate,
             "tests": dict(planned.tests),
             "target_power": 0.8,
             "ci_level": 0.95,
