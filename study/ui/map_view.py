@@ -9,7 +9,6 @@ docs/decisions.md (study/ui).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 import pygame
@@ -18,7 +17,7 @@ from sim.occupancy import OccupancyGrid
 from sim.scenario import Scenario
 from sim.scene import Box, Cylinder
 from sim.types import Pose2D
-from study.types import TrialInfo
+from study.ui.describe import Goal
 
 FREE = (250, 250, 250)
 OCCUPIED = (70, 70, 70)
@@ -29,19 +28,6 @@ LASER = (170, 40, 210)  # the purple dots (study.engine.texts.LASER_COLOUR_NAME)
 ARROW = (20, 170, 60)
 GOAL = (0, 140, 150)
 MARK_TEXT = (0, 0, 0)
-
-
-@dataclass(frozen=True, slots=True)
-class Goal:
-    """A goal of the trial as drawn: a circle of the position tolerance, and for a pose
-    with a heading (B) an arrow and a wedge of the heading tolerance."""
-
-    label: str  # "A" or "B"
-    x: float  # [m] map frame
-    y: float
-    tolerance_m: float
-    yaw: float | None = None  # [rad] the heading to stop in, None: any
-    tolerance_rad: float = 0.0
 
 
 class MapView:
@@ -100,17 +86,9 @@ class MapView:
                 self._object = element
         self._key = key
 
-    def set_trial(self, info: TrialInfo) -> None:
-        """The goals of the trial's route, with their tolerances."""
-        scenario, goals = info.scenario, []
-        if "start" in info.route:
-            a = scenario.start
-            tol = info.primary.goal_tolerance_m if info.primary is not None else 0.3
-            goals.append(Goal("A", a.x, a.y, tol))
-        if "dock" in info.route and scenario.dock is not None:
-            d = scenario.dock
-            goals.append(Goal("B", d.pose.x, d.pose.y, d.tolerance_m, d.pose.yaw, d.tolerance_rad))
-        self.goals = tuple(goals)
+    def set_goals(self, goals: tuple[Goal, ...]) -> None:
+        """The goals of the trial's route (:func:`study.ui.describe.goals`)."""
+        self.goals = goals
 
     def to_px(self, xy: np.ndarray) -> np.ndarray:
         """Map-frame points (k, 2) [m] -> window pixels (k, 2)."""
