@@ -593,5 +593,6 @@ def get_study(session: Session) -> Study | None:
 
 # the lab's streams (revision 0004): defined beside, mapped on the same metadata
 from study.data.lsl_tables import LslChunk, LslGap, LslOffset, LslStream  # noqa: E402, F401
+
 # invitations of browser participants (revision 0005)
 from study.data.web_tables import Invite  # noqa: E402, F401
