@@ -18,8 +18,12 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 from questionnaires import nasa_tlx
 from questionnaires.base import DECLINE, Item
+from sim.occupancy import OccupancyGrid
+from sim.scenario import Scenario
 from study.engine.protocol import UiSettings
 from study.engine.texts import fill, first_sentence, trial_title, trial_values
 from study.types import TrialInfo
@@ -294,6 +298,36 @@ def drive_screen(
         marks=scenario_marks(info),
         footprint=tuple((float(x), float(y)) for x, y in footprint),
     )
+
+
+def map_cells(scenario: Scenario, grid: OccupancyGrid) -> np.ndarray:
+    """The map as drawn: per grid cell (rows, cols) uint8, 0 free, 1 in the question region
+    (pale yellow), 2 occupied (dark grey); row 0 at the grid's origin."""
+    occ = np.asarray(grid.occupied)
+    out = np.zeros(occ.shape, dtype=np.uint8)
+    rows, cols = occ.shape
+    if len(scenario.question_region):
+        cells = np.stack(np.meshgrid(np.arange(rows), np.arange(cols), indexing="ij"), -1)
+        centres = grid.cell_to_world(cells.reshape(-1, 2))
+        inside = in_polygon(centres, np.asarray(scenario.question_region))
+        out[inside.reshape(rows, cols)] = 1
+    out[occ] = 2
+    return out
+
+
+def in_polygon(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
+    """Even-odd rule: which of ``points`` (k, 2) lie inside ``polygon`` (m, 2)."""
+    x, y = points[:, 0], points[:, 1]
+    inside = np.zeros(len(points), dtype=bool)
+    px, py = polygon[:, 0], polygon[:, 1]
+    j = len(polygon) - 1
+    for i in range(len(polygon)):
+        crosses = (py[i] > y) != (py[j] > y)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            xs = (px[j] - px[i]) * (y - py[i]) / (py[j] - py[i]) + px[i]
+        inside ^= crosses & (x < xs)
+        j = i
+    return inside
 
 
 def to_json(screen: Screen) -> dict[str, Any]:

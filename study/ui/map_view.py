@@ -17,7 +17,7 @@ from sim.occupancy import OccupancyGrid
 from sim.scenario import Scenario
 from sim.scene import Box, Cylinder
 from sim.types import Pose2D
-from study.ui.describe import Goal
+from study.ui.describe import Goal, map_cells
 
 FREE = (250, 250, 250)
 OCCUPIED = (70, 70, 70)
@@ -57,16 +57,9 @@ class MapView:
         key = scenario.source or scenario.name
         if key == self._key:
             return
-        occ = np.asarray(grid.occupied)
-        rgb = np.empty((*occ.shape, 3), dtype=np.uint8)
-        rgb[:] = FREE
-        rows, cols = occ.shape
-        if len(scenario.question_region):
-            cells = np.stack(np.meshgrid(np.arange(rows), np.arange(cols), indexing="ij"), -1)
-            centres = grid.cell_to_world(cells.reshape(-1, 2))
-            inside = in_polygon(centres, np.asarray(scenario.question_region))
-            rgb[inside.reshape(rows, cols)] = REGION
-        rgb[occ] = OCCUPIED
+        classes = map_cells(scenario, grid)
+        rows, cols = classes.shape
+        rgb = np.array([FREE, REGION, OCCUPIED], dtype=np.uint8)[classes]
         image = np.ascontiguousarray(rgb[::-1].swapaxes(0, 1))  # (cols, rows): x first, y down
         surf = pygame.surfarray.make_surface(image)
         scale = min(self.rect.width / cols, self.rect.height / rows)
@@ -210,18 +203,3 @@ class MapView:
             rect.center = (int(a[0]), int(a[1]))
             lo, hi = (start, start + span) if span > 0 else (start + span, start)
             pygame.draw.arc(surface, ARROW, rect, lo, hi, 3)
-
-
-def in_polygon(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
-    """Even-odd rule: which of ``points`` (k, 2) lie inside ``polygon`` (m, 2)."""
-    x, y = points[:, 0], points[:, 1]
-    inside = np.zeros(len(points), dtype=bool)
-    px, py = polygon[:, 0], polygon[:, 1]
-    j = len(polygon) - 1
-    for i in range(len(polygon)):
-        crosses = (py[i] > y) != (py[j] > y)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            xs = (px[j] - px[i]) * (y - py[i]) / (py[j] - py[i]) + px[i]
-        inside ^= crosses & (x < xs)
-        j = i
-    return inside

@@ -1,0 +1,98 @@
+"""Participants in a browser, end to end (issue 37): a real `asa serve`, real headless
+Chromium with a faked gamepad, real pybullet and SQLite. The stored session must be what
+the browser did: the forms' answers, the pairwise choices, the answers to the questions,
+the stick's pushes, every tick with its input's age and round trip."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from questionnaires import experience, nasa_tlx
+from study.data.storage import Invite, Question, Response, Sample, SessionRow, Trial, open_database
+from study.ui.forms import FormState
+from tests.web_helpers import Person, browser, served, short_protocol
+
+pytestmark = pytest.mark.skipif(
+    shutil.which("chromium") is None or shutil.which("chromedriver") is None,
+    reason="needs Debian's chromium and chromium-driver (.ci/run installs them)",
+)
+
+
+def _replayed(instrument) -> dict:
+    """The answers a form gets from 'right, then A' on every row and A on Done."""
+    state = FormState(instrument)
+    for _ in instrument.items:
+        state.action("right")
+        state.action("confirm")
+    state.action("confirm")
+    assert state.done
+    return state.answers()
+
+
+def _stored(s: Session, instrument: str) -> dict:
+    rows = s.scalars(select(Response).where(Response.instrument == instrument)).all()
+    return {r.item: (r.value if r.value is not None else r.text) for r in rows}
+
+
+def test_a_browser_drives_a_whole_session_and_the_store_is_what_it_did(tmp_path, seed):
+    protocol = short_protocol(tmp_path, seed % 1000)
+    db = str(tmp_path / "web.db")
+    with served(protocol, db) as server:
+        driver = browser()
+        try:
+            driver.get(server.links["P01"])
+            person = Person(driver)
+            end = person.run()
+        finally:
+            driver.quit()
+    assert end["phase"] == "ended" and end["end"]["code"] == "C0DE42"
+    engine = open_database(db, create=False)
+    with Session(engine) as s:
+        assert s.scalars(select(SessionRow.status)).all() == ["completed"]
+        assert s.scalars(select(Invite.status)).all() == ["completed"]
+        check = s.scalars(select(Invite.checks)).one()[0]
+        assert check["passed"] and len(check["rtts_ms"]) == 5
+        got = _stored(s, experience.INSTRUMENT.id)
+        want = {
+            k: "" if v is None else v if isinstance(v, str) else float(v)
+            for k, v in _replayed(experience.INSTRUMENT).items()
+        }
+        assert {k: got.get(k) for k in want} == want
+        tlx = s.scalars(select(Response).where(Response.instrument == nasa_tlx.INSTRUMENT_ID)).all()
+        ratings = sorted((r.trial_id, r.item, r.value) for r in tlx if ":" not in r.item)
+        replay = _replayed(nasa_tlx.INSTRUMENT)
+        trials = sorted({r.trial_id for r in tlx})
+        assert len(trials) == 2  # two main trials, rated after each
+        assert ratings == sorted((t, k, float(v)) for t in trials for k, v in replay.items())
+        ids = {sub.title: sub.id for sub in nasa_tlx.SUBSCALES}
+        chosen = {r.item: r.text for r in tlx if r.item.startswith("pair:")}
+        assert len(person.pairs) == 15 == len(chosen)
+        for left, right in person.pairs:
+            a, b = sorted((ids[left], ids[right]))
+            key = f"pair:{a}|{b}" if f"pair:{a}|{b}" in chosen else f"pair:{b}|{a}"
+            assert chosen[key] == ids[right]  # the page pressed right, then A
+        answers = s.scalars(select(Question.response).where(Question.response.is_not(None))).all()
+        assert answers and all(answers) and len(answers) <= person.answered
+        for trial in s.scalars(select(Trial).where(Trial.phase == "main")):
+            ticks = s.execute(
+                select(Sample.tick, Sample.u_x, Sample.input_age_ticks, Sample.rtt_ms)
+                .where(Sample.trial_id == trial.id)
+                .order_by(Sample.tick)
+            ).all()
+            assert [t.tick for t in ticks] == list(range(len(ticks)))  # no tick lost
+            ages = [t.input_age_ticks for t in ticks if t.input_age_ticks is not None]
+            assert len(ages) >= 0.9 * len(ticks) and min(ages) >= 0
+            assert sum(t.rtt_ms is not None for t in ticks) >= 0.9 * len(ticks)
+            ux = np.array([t.u_x for t in ticks])
+            assert (ux > 0.9 * ux.max()).any() and ux.max() > 0 and (ux == 0).any()
+    engine.dispose()
+    done = subprocess.run([sys.executable, "-m", "study.cli", "db", "check", "--db", db],
+                          capture_output=True, text=True)  # fmt: skip
+    assert done.returncode == 0, done.stdout + done.stderr
