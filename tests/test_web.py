@@ -96,3 +96,62 @@ def test_a_browser_drives_a_whole_session_and_the_store_is_what_it_did(tmp_path,
     done = subprocess.run([sys.executable, "-m", "study.cli", "db", "check", "--db", db],
                           capture_output=True, text=True)  # fmt: skip
     assert done.returncode == 0, done.stdout + done.stderr
+
+
+def _events(s: Session, trial_id: int) -> list[str]:
+    from study.data.storage import Event
+
+    return s.scalars(select(Event.kind).where(Event.trial_id == trial_id).order_by(Event.id)).all()
+
+
+def test_a_cut_connection_pauses_and_resumes_and_one_past_grace_aborts_resumably(tmp_path, seed):
+    """Cut mid-trial from the server's side: the trial pauses (gap marked), the page comes
+    back, no tick is lost; cut for longer than the grace period: trial and session aborted,
+    and opening the link again resumes the session to its end."""
+    import time
+
+    from tests.web_helpers import CuttableProxy
+
+    protocol = short_protocol(tmp_path, seed % 1000, timeout_s=4.0, grace_s=4.0)
+    db = str(tmp_path / "web.db")
+    with served(protocol, db) as server:
+        port = int(server.base.rsplit(":", 1)[1])
+        proxy = CuttableProxy(port)
+        driver = browser()
+        try:
+            driver.get(server.links["P01"].replace(f":{port}/", f":{proxy.port}/"))
+            person = Person(driver)
+            person.run(stop_at="Trial 1")
+            time.sleep(0.5)
+            proxy.blocked = True
+            proxy.cut()
+            time.sleep(2.0)  # within the grace period
+            proxy.blocked = False
+            person.run(stop_at="Trial 2")
+            time.sleep(0.5)
+            proxy.blocked = True
+            proxy.cut()
+            time.sleep(7.0)  # past the grace period: aborted
+            engine = open_database(db, create=False)
+            with Session(engine) as s:
+                assert s.scalars(select(SessionRow.status)).all() == ["aborted"]
+            engine.dispose()
+            proxy.blocked = False
+            end = person.run()
+        finally:
+            driver.quit()
+            proxy.close()
+    assert end["phase"] == "ended"
+    engine = open_database(db, create=False)
+    with Session(engine) as s:
+        rows = s.scalars(select(SessionRow)).all()
+        assert [r.status for r in rows] == ["completed"] and rows[0].resumed
+        mains = s.scalars(select(Trial).where(Trial.phase == "main").order_by(Trial.id)).all()
+        assert [t.status for t in mains][1] == "aborted" and len(mains) == 3
+        kinds = _events(s, mains[0].id)
+        for kind in ("connection_lost", "pause", "connection_back", "resume"):
+            assert kind in kinds
+        ticks = s.scalars(select(Sample.tick).where(Sample.trial_id == mains[0].id)).all()
+        assert sorted(ticks) == list(range(len(ticks)))  # the pause lost no tick
+        assert "connection_lost" in _events(s, mains[1].id)
+    engine.dispose()
