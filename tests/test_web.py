@@ -155,3 +155,65 @@ def test_a_cut_connection_pauses_and_resumes_and_one_past_grace_aborts_resumably
         assert sorted(ticks) == list(range(len(ticks)))  # the pause lost no tick
         assert "connection_lost" in _events(s, mains[1].id)
     engine.dispose()
+
+
+def test_hostile_input_is_counted_and_dropped_and_a_second_page_takes_over(tmp_path, seed):
+    """Wrong and replayed-looking tokens get 404; malformed, oversized, out-of-order and
+    flooding messages are dropped and counted, and the session lives on; a second page on
+    one token takes over and the first is told and closed (never two drive)."""
+    import asyncio
+    import json
+
+    import aiohttp
+
+    from study.web import messages as wire
+
+    protocol = short_protocol(tmp_path, seed % 1000)
+    db = str(tmp_path / "web.db")
+    rng = np.random.default_rng(seed)
+
+    async def attack(server) -> dict:
+        base, token = server.base, server.links["P01"].rsplit("/", 1)[1]
+        async with aiohttp.ClientSession() as http:
+            for bad in ("x" * 22, token[:-1] + ("A" if token[-1] != "A" else "B"), "../etc"):
+                async with http.get(f"{base}/s/{bad}") as r:
+                    assert r.status == 404
+                async with http.get(f"{base}/ws/{bad}") as r:
+                    assert r.status == 404
+            async with http.get(f"{base}/experimenter?token=wrong") as r:
+                assert r.status == 404
+            ws1 = await http.ws_connect(f"{base}/ws/{token}")
+            await ws1.send_bytes(bytes(rng.integers(0, 256, 32, dtype=np.uint8)))  # malformed
+            await ws1.send_bytes(b"\x01" * 60)  # malformed length
+            await ws1.send_bytes(b"\x01" * 4000)  # oversized
+            await ws1.send_str("{not json")
+            await ws1.send_str(json.dumps({"type": "click", "target": "option", "row": -1}))
+            await ws1.send_str(json.dumps({"type": "x" * 5000}))  # oversized
+            await ws1.send_bytes(wire.pack_input(10, 0, (0, 0, 0, 0)))
+            await ws1.send_bytes(wire.pack_input(9, 0, (0, 0, 0, 0)))  # out of order
+            await ws1.send_bytes(wire.pack_input(11, 0, (float("nan"), 0, 0, 0)))
+            for i in range(600):  # a flood
+                await ws1.send_bytes(wire.pack_input(100 + i, 0, (0, 0, 0, 0)))
+            await asyncio.sleep(1.5)
+            ws2 = await http.ws_connect(f"{base}/ws/{token}")
+            told = await ws1.receive(timeout=10)
+            while told.type == aiohttp.WSMsgType.TEXT and "taken_over" not in told.data:
+                told = await ws1.receive(timeout=10)
+            closed = await ws1.receive(timeout=10)
+            async with http.ws_connect(
+                server.experimenter.replace("/experimenter?", "/ws-experimenter?")
+            ) as ex:
+                overview = json.loads((await ex.receive(timeout=10)).data)
+            await ws2.close()
+            return {"told": told, "closed": closed, "overview": overview, "ws1": ws1}
+
+    with served(protocol, db) as server:
+        got = asyncio.run(attack(server))
+    assert "taken_over" in got["told"].data
+    assert got["closed"].type in (aiohttp.WSMsgType.CLOSE, aiohttp.WSMsgType.CLOSED)
+    (session,) = got["overview"]["sessions"]
+    assert session["running"] and session["takeovers"] == 1
+    drops = session["drops"]
+    assert drops["malformed"] >= 5 and drops["oversized"] == 2 and drops["out_of_order"] == 1
+    assert drops["flood"] >= 600 + 9 - 240
+    assert got["overview"]["refused"]["bad_token"] >= 5  # "../etc" never reaches a token route
