@@ -8,6 +8,7 @@ to stdout."""
 
 from __future__ import annotations
 
+import sys
 import time
 from pathlib import Path
 from typing import TextIO
@@ -26,7 +27,7 @@ class ProgressBar:
     rate of this run (entries already in a resumed bank do not count)."""
 
     def __init__(self, stream: TextIO | None = None, width: int = 30) -> None:
-        self.stream = stream if stream is not None else click.get_text_stream("stderr")
+        self.stream = stream if stream is not None else sys.stderr
         self.tty = self.stream.isatty()
         self.width = width
         self.stage = ""
