@@ -5,6 +5,7 @@ the stick's pushes, every tick with its input's age and round trip."""
 
 from __future__ import annotations
 
+import json
 import shutil
 import subprocess
 import sys
@@ -217,3 +218,56 @@ def test_hostile_input_is_counted_and_dropped_and_a_second_page_takes_over(tmp_p
     assert drops["malformed"] >= 5 and drops["oversized"] == 2 and drops["out_of_order"] == 1
     assert drops["flood"] >= 600 + 9 - 240
     assert got["overview"]["refused"]["bad_token"] >= 5  # "../etc" never reaches a token route
+
+
+def test_the_experimenter_sees_the_mode_and_the_robot_and_an_abort_is_recorded(tmp_path, seed):
+    """The live view lists the running session with its trial's mode (never shown to the
+    participant) and the robot on its map; its abort button stores the trial aborted."""
+    import time
+
+    from study.data.storage import Event
+
+    protocol = short_protocol(tmp_path, seed % 1000, timeout_s=30.0)
+    db = str(tmp_path / "web.db")
+    with served(protocol, db) as server:
+        participant, experimenter = browser(), browser()
+        try:
+            participant.get(server.links["P01"])
+            person = Person(participant)
+            person.run(stop_at="Trial 1")
+            experimenter.get(server.experimenter)
+            view: dict = {}
+            for _ in range(100):
+                view = experimenter.execute_script("return window.__asa_experimenter")
+                ready = view.get("sessions") and view["sessions"][0].get("rtt_ms") is not None
+                if ready and view["sessions"][0].get("trial"):
+                    if experimenter.execute_script(
+                        "return document.querySelectorAll('#maps canvas').length"
+                    ):
+                        break
+                time.sleep(0.1)
+            (session,) = view["sessions"]
+            assert session["code"] == "P01" and session["trial"]["phase"] == "main"
+            assert session["trial"]["mode"] in ("manual", "reactive_bn")
+            assert session["rtt_ms"] is not None and session["connected"]
+            mode = session["trial"]["mode"]
+            assert mode not in json.dumps(person.state())  # never on the participant's page
+            experimenter.execute_script("window.confirm = () => true")
+            experimenter.find_element("css selector", "#rows button").click()
+            for _ in range(100):
+                if person.state()["phase"] == "aborted":
+                    break
+                time.sleep(0.1)
+            assert person.state()["phase"] == "aborted"
+        finally:
+            participant.quit()
+            experimenter.quit()
+    engine = open_database(db, create=False)
+    with Session(engine) as s:
+        (trial,) = s.scalars(select(Trial).where(Trial.phase == "main")).all()
+        assert trial.status == "aborted"
+        assert "aborted by the experimenter" in trial.outcome["aborted_reason"]
+        kinds = s.scalars(select(Event.kind).where(Event.trial_id == trial.id)).all()
+        assert "abort" in kinds
+        assert s.scalars(select(SessionRow.status)).all() == ["aborted"]
+    engine.dispose()

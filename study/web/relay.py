@@ -53,6 +53,7 @@ class SessionHandle:
         self.wake = asyncio.Event()
         self.started = time.time()
         self.takeovers = 0
+        self.map: bytes | None = None  # the scene's MAP message, for the experimenter's view
 
     # -------------------------------------------------------------- the process
 
@@ -98,6 +99,8 @@ class SessionHandle:
             self.status = {**self.status, "ended": True}
 
     def _queue(self, payload: bytes | str, latest: str) -> None:
+        if isinstance(payload, bytes) and payload[:1] == bytes([wire.MAP]):
+            self.map = payload
         if latest:
             self.latest[latest] = payload
         else:

@@ -19,9 +19,11 @@ from pathlib import Path
 from typing import Any
 
 from aiohttp import WSMsgType, web
+from sqlalchemy import select
 from sqlalchemy.engine import Engine
+from sqlalchemy.orm import Session
 
-from study.data.storage import open_database
+from study.data.storage import Participant, Trial, open_database
 from study.web import invites
 from study.web.relay import SessionHandle
 from study.web.session_proc import SessionJob
@@ -157,14 +159,28 @@ class StudyServer:
             return _html(f"<p>{NOT_FOUND}</p>", status=404)
         return web.FileResponse(STATIC / "experimenter.html", headers=HEADERS)
 
-    def overview(self) -> dict[str, Any]:
-        """Every session the server has run, for the experimenter's view."""
+    def overview(self, trials: dict[str, dict[str, Any]]) -> dict[str, Any]:
+        """Every session the server has run, for the experimenter's view, with its running
+        trial (``trials``: code -> phase, ordinal, mode) where it has one."""
         return {
             "type": "sessions",
-            "sessions": [h.summary() for h in self.sessions.values()],
+            "sessions": [
+                {**h.summary(), "trial": trials.get(h.code)} for h in self.sessions.values()
+            ],
             "refused": dict(self.refused),
             "at": time.time(),
         }
+
+    def running_trials(self) -> dict[str, dict[str, Any]]:
+        """Participant code -> its running trial's phase, ordinal, attempt and mode (the
+        mode is the experimenter's to see, never the participant's)."""
+        with Session(self.engine) as s:
+            rows = s.execute(
+                select(Participant.code, Trial.phase, Trial.ordinal, Trial.attempt, Trial.mode)
+                .join(Participant, Participant.id == Trial.participant_id)
+                .where(Trial.status == "running")
+            ).all()
+        return {r[0]: {"phase": r[1], "ordinal": r[2], "attempt": r[3], "mode": r[4]} for r in rows}
 
     async def experimenter_ws(self, request: web.Request) -> web.StreamResponse:
         if not self._experimenter_ok(request):
@@ -182,13 +198,22 @@ class StudyServer:
         return ws
 
     async def _feed(self, ws: web.WebSocketResponse) -> None:
+        loop = asyncio.get_running_loop()
+        maps: dict[str, bytes] = {}  # the maps this view has
         while not ws.closed:
+            trials = await loop.run_in_executor(None, self.running_trials)
             with contextlib.suppress(ConnectionError, RuntimeError):
-                await ws.send_str(json.dumps(self.overview()))
+                for handle in self.sessions.values():
+                    if handle.map is not None and maps.get(handle.code) is not handle.map:
+                        maps[handle.code] = handle.map
+                        await ws.send_str(json.dumps({"type": "map", "code": handle.code}))
+                        await ws.send_bytes(handle.map)
+                await ws.send_str(json.dumps(self.overview(trials)))
             await asyncio.sleep(STATUS_EVERY_S)
 
     def _experimenter_message(self, text: str) -> None:
-        """``{"type": "abort", "code": ...}``: the experimenter aborts that session."""
+        """``{"type": "abort", "code": ...}``: the experimenter aborts that session (the
+        trial running is stored aborted with the reason, or the session on a page)."""
         with contextlib.suppress(ValueError, TypeError, AttributeError):
             msg = json.loads(text)
             if msg.get("type") == "abort":
