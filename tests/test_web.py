@@ -97,6 +97,13 @@ def test_a_browser_drives_a_whole_session_and_the_store_is_what_it_did(tmp_path,
     done = subprocess.run([sys.executable, "-m", "study.cli", "db", "check", "--db", db],
                           capture_output=True, text=True)  # fmt: skip
     assert done.returncode == 0, done.stdout + done.stderr
+    from analysis import data_quality
+    from analysis.data.load import load_study
+
+    (row,) = data_quality.describe(load_study(db).tables).to_dict("records")
+    assert row["participant"] == "P01" and row["ticks"] >= 40 and row["connections_lost"] == 0
+    assert 0 <= row["age_median"] <= row["age_p95"] <= row["age_worst"]
+    assert 0 < row["rtt_median_ms"] <= row["rtt_p95_ms"] <= row["rtt_worst_ms"]
 
 
 def _events(s: Session, trial_id: int) -> list[str]:
@@ -271,3 +278,42 @@ def test_the_experimenter_sees_the_mode_and_the_robot_and_an_abort_is_recorded(t
         assert "abort" in kinds
         assert s.scalars(select(SessionRow.status)).all() == ["aborted"]
     engine.dispose()
+
+
+def _four_at_once(tmp_path, db: str, seed: int) -> None:
+    """Four participants' browsers on one server at the same time, each to its end."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    protocol = short_protocol(tmp_path, seed % 1000)
+    codes = ("P01", "P02", "P03", "P04")
+    with served(protocol, db, codes=codes) as server:
+
+        def one(code: str) -> str:
+            driver = browser()
+            try:
+                driver.get(server.links[code])
+                return Person(driver).run(timeout=480)["phase"]
+            finally:
+                driver.quit()
+
+        with ThreadPoolExecutor(4) as pool:
+            phases = list(pool.map(one, codes))
+    assert phases == ["ended"] * 4
+    engine = open_database(db, create=False)
+    with Session(engine) as s:
+        assert s.scalars(select(SessionRow.status)).all() == ["completed"] * 4
+    engine.dispose()
+    done = subprocess.run([sys.executable, "-m", "study.cli", "db", "check", "--db", db],
+                          capture_output=True, text=True)  # fmt: skip
+    assert done.returncode == 0, done.stdout + done.stderr
+
+
+@pytest.mark.slow
+def test_four_browsers_at_once_on_sqlite(tmp_path, seed):
+    _four_at_once(tmp_path, str(tmp_path / "web.db"), seed)
+
+
+@pytest.mark.slow
+@pytest.mark.postgres
+def test_four_browsers_at_once_on_postgresql(tmp_path, seed, pg_url):
+    _four_at_once(tmp_path, pg_url, seed)

@@ -112,6 +112,7 @@ class WebParticipant(ParticipantBase):
         self._camera_due = 0.0
         self._camera_frames = 0
         self._status_due = 0.0
+        self._drops: dict[str, int] = {}  # the link's drop counts when last stored
         self.rtts: list[float] = []  # [ms] the round trips of this trial's ticks
         self.ages: list[int] = []  # the input ages of this trial's ticks
 
@@ -318,10 +319,16 @@ class WebParticipant(ParticipantBase):
         return 0
 
     def _page_events(self, t: float, msgs: list[dict[str, Any]]) -> None:
-        """The page hidden or shown, focus lost or back: events of the trial."""
+        """The page hidden or shown, focus lost or back, messages the server dropped since
+        the last such event (by reason): events of the trial."""
+        if self._event is None:
+            return
+        drops = dict(self.link.drops)
+        if drops != self._drops:
+            new = {k: v - self._drops.get(k, 0) for k, v in drops.items()}
+            self._event(t, "messages_dropped", **{k: v for k, v in new.items() if v})
+            self._drops = drops
         for m in msgs:
-            if self._event is None:
-                return
             if m["type"] == "visibility":
                 self._event(t, "page_hidden" if m["hidden"] else "page_visible")
             elif m["type"] == "focus":
@@ -385,8 +392,7 @@ class WebParticipant(ParticipantBase):
         })  # fmt: skip
 
     def end_trial(self, outcome: dict[str, Any]) -> None:
-        """Messages dropped during the trial as a note for the experimenter's view; "time's
-        up" or "crashed" as on the pygame screen."""
+        """"Time's up" or "crashed" as on the pygame screen."""
         info = self._info
         self.world, self._event = None, None
         if info is None:
