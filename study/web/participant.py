@@ -392,7 +392,7 @@ class WebParticipant(ParticipantBase):
         })  # fmt: skip
 
     def end_trial(self, outcome: dict[str, Any]) -> None:
-        """"Time's up" or "crashed" as on the pygame screen."""
+        """ "Time's up" or "crashed" as on the pygame screen."""
         info = self._info
         self.world, self._event = None, None
         if info is None:
