@@ -71,6 +71,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "Run the protocol's sessions for participants who join from a browser link.",
     ),
     "invite": ("study.cli.serve:invite", "Make browser links for participants of `asa serve`."),
+    "snapshots": (
+        "study.cli.serve:snapshots",
+        "Screenshots of every screen of a protocol in headless Chromium.",
+    ),
     "db": (
         "study.cli.db:db",
         "Study database tools: check, diff, upgrade, push a site's database.",

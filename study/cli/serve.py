@@ -167,3 +167,32 @@ def invite(codes: tuple[str, ...], count: int, db: str, base_url: str, out: Path
         return
     for code, token in made:
         click.echo(f"{code}\t{invites.link(base_url, token)}")
+
+
+@click.command("snapshots")
+@click.option("--protocol", "protocol", required=True, help="Shipped protocol name or TOML file.")
+@click.option(
+    "--out",
+    type=click.Path(file_okay=False, path_type=Path),
+    required=True,
+    help="Folder for the PNG files (NNNN_<screen>.png).",
+)
+@click.option("--no-camera", is_flag=True, help="No camera image on the driving screen.")
+def snapshots(protocol: str, out: Path, no_camera: bool) -> None:
+    """Screenshots of every screen of a protocol as the browser shows it.
+
+    A throwaway study on 127.0.0.1, one headless Chromium page (Debian's chromium and
+    chromedriver, selenium from the test extra) driven by a scripted person with a faked
+    gamepad through the whole session. The pygame window's screens:
+    `asa run --input scripted --headless --snapshots DIR`.
+
+    \b
+    Example:
+      asa snapshots --protocol pilot --out web-shots/
+    """
+    from study.engine.protocol import load_protocol
+    from study.web.testing import snapshot_session
+
+    load_protocol(protocol)
+    shots = snapshot_session(protocol, out, camera=not no_camera)
+    click.echo(f"{out}: {len(shots)} screenshots")

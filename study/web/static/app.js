@@ -59,6 +59,7 @@ function onBinary(buffer) {
     createImageBitmap(new Blob([c.jpeg], { type: "image/jpeg" })).then((img) => {
       if (view.camera[c.which]) view.camera[c.which].close();
       view.camera[c.which] = img;
+      A.cameraFrames = (A.cameraFrames || 0) + 1;
     });
   } else if (kind === M.MAP) {
     view.map = M.unpackMap(buffer); view.mapCanvas = R.mapImage(view.map);
