@@ -286,7 +286,7 @@ def _four_at_once(tmp_path, db: str, seed: int) -> None:
 
     protocol = short_protocol(tmp_path, seed % 1000)
     codes = ("P01", "P02", "P03", "P04")
-    with served(protocol, db, codes=codes) as server:
+    with served(protocol, db, "--recordings", str(tmp_path / "rec"), codes=codes) as server:
 
         def one(code: str) -> str:
             driver = browser()
