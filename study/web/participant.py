@@ -90,8 +90,12 @@ class WebParticipant(ParticipantBase):
         self.controls = Controls.from_settings(inputs)
         self.parameters = {"interface": "browser", **(parameters or {})}
         self.camera = camera
+        self._jpeg: Any = None  # cv2.imencode, imported here, not in a tick
         if camera is not None:
             camera.tail = ui.layout == "laser"
+            import cv2  # an ordinary dependency (opencv-python-headless)
+
+            self._jpeg = cv2
         self.control = control
         self.world: Any = None
         self._event: Callable[..., None] | None = None
@@ -366,9 +370,9 @@ class WebParticipant(ParticipantBase):
         if camera.frames == self._camera_frames or now < self._camera_due:
             return
         self._camera_frames = camera.frames
-        self._camera_due = now + 1.0 / self.web.camera_hz
-        import cv2  # an ordinary dependency (opencv-python-headless)
-
+        period = 1.0 / self.web.camera_hz  # on a schedule: a late frame does not shift it
+        self._camera_due = max(self._camera_due + period, now - period)
+        cv2 = self._jpeg
         for which, image in (("front", camera.image), ("tail", camera.tail_image)):
             if image is None:
                 continue
