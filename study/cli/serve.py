@@ -178,7 +178,14 @@ def invite(codes: tuple[str, ...], count: int, db: str, base_url: str, out: Path
     help="Folder for the PNG files (NNNN_<screen>.png).",
 )
 @click.option("--no-camera", is_flag=True, help="No camera image on the driving screen.")
-def snapshots(protocol: str, out: Path, no_camera: bool) -> None:
+@click.option(
+    "--trial-s",
+    type=click.FloatRange(2.0, 600.0),
+    default=10.0,
+    show_default=True,
+    help="Every trial cut to this many seconds (a look at the screens, not data).",
+)
+def snapshots(protocol: str, out: Path, no_camera: bool, trial_s: float) -> None:
     """Screenshots of every screen of a protocol as the browser shows it.
 
     A throwaway study on 127.0.0.1, one headless Chromium page (Debian's chromium and
@@ -194,5 +201,5 @@ def snapshots(protocol: str, out: Path, no_camera: bool) -> None:
     from study.web.testing import snapshot_session
 
     load_protocol(protocol)
-    shots = snapshot_session(protocol, out, camera=not no_camera)
+    shots = snapshot_session(protocol, out, camera=not no_camera, trial_s=trial_s)
     click.echo(f"{out}: {len(shots)} screenshots")

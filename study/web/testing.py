@@ -249,13 +249,33 @@ class Person:
                 time.sleep(0.05)
 
 
-def snapshot_session(protocol: str, out: Path, *, camera: bool = True) -> list[Path]:
+def shortened(text: str, trial_s: float) -> str:
+    """A protocol's text with every trial's ``timeout_s``, ``duration_s`` and
+    ``time_limit_s`` cut to at most ``trial_s`` seconds (a look at the screens)."""
+    import re
+
+    def cut(m: re.Match) -> str:
+        return f"{m.group(1)}{min(float(m.group(2)), trial_s):g}"
+
+    return re.sub(r"(?m)^(\s*(?:timeout_s|duration_s|time_limit_s)\s*=\s*)([0-9.]+)", cut, text)
+
+
+def snapshot_session(
+    protocol: str, out: Path, *, camera: bool = True, trial_s: float = 10.0
+) -> list[Path]:
     """Every screen of ``protocol`` as the browser shows it: a throwaway study served on
-    127.0.0.1, one headless Chromium page driven by the scripted person, a PNG of each
-    screen (and of the driving screen now and then) into ``out``; the PNGs written."""
+    127.0.0.1 with every trial cut to ``trial_s`` seconds (:func:`shortened`), one
+    headless Chromium page driven by the scripted person, a PNG of each screen (and of the
+    driving screen now and then) into ``out``; the PNGs written."""
     import tempfile
 
+    from study.engine.protocol import protocol_path
+
     with tempfile.TemporaryDirectory(prefix="asa-snapshots-") as tmp:
+        short = Path(tmp) / "protocol.toml"
+        text = protocol_path(protocol).read_text(encoding="utf-8")
+        short.write_text(shortened(text, trial_s), encoding="utf-8")
+        protocol = str(short)
         db = str(Path(tmp) / "s.db")
         with served(protocol, db, camera=camera) as server:  # type: ignore[arg-type]
             driver = browser()

@@ -106,16 +106,31 @@ function rowHeight(ctx, row, width, f) {
   return 16 + lines * Math.round(f.small * 1.2) + 4 + widget;
 }
 
+function formFit(ctx, s, w, h) {
+  // the largest fonts (down to 60 %) with which every row fits above "Done"
+  const margin = Math.round(w * 0.06);
+  for (let k = 1.0; ; k -= 0.08) {
+    const f = fonts(h * k), legend = fonts(h);
+    const line = Math.round(f.small * 1.2);
+    const top = Math.round(h * 0.03) + Math.round(f.large * 1.2)
+      + wrap(ctx, s.instructions, w - 2 * margin, f.small).length * line + 4;
+    const heights = s.rows.map((r) => rowHeight(ctx, r, w - 2 * margin, f));
+    const bottom = h - legendHeight(legend) - 8 - Math.round(h * 0.065) - line * 3;
+    if (top + heights.reduce((a, b) => a + b, 0) + 2 * heights.length <= bottom || k < 0.64) {
+      return { f: { ...f, legendBar: legend }, heights };
+    }
+  }
+}
+
 export function drawForm(ctx, s, w, h) {
-  const f = fonts(h), hits = [];
+  const { f, heights } = formFit(ctx, s, w, h), hits = [];
   ctx.fillStyle = C.background; ctx.fillRect(0, 0, w, h);
   const margin = Math.round(w * 0.06), line = Math.round(f.small * 1.2);
   let y = Math.round(h * 0.03);
   text(ctx, s.title, margin, y, f.large); y += Math.round(f.large * 1.2);
   y = paragraph(ctx, s.instructions, margin, y, w - 2 * margin, f.small, C.dim) + 4;
-  const heights = s.rows.map((r) => rowHeight(ctx, r, w - 2 * margin, f));
   const done = { w: Math.round(w * 0.18), h: Math.round(h * 0.065) };
-  done.x = w / 2 - done.w / 2; done.y = h - legendHeight(f) - 8 - done.h;
+  done.x = w / 2 - done.w / 2; done.y = h - legendHeight(f.legendBar) - 8 - done.h;
   const spare = done.y - line * 3 - y - heights.reduce((a, b) => a + b, 0);
   const gap = Math.max(2, Math.min(14, Math.floor(spare / Math.max(1, heights.length))));
   s.rows.forEach((row, k) => {
@@ -136,7 +151,7 @@ export function drawForm(ctx, s, w, h) {
   text(ctx, "Done", w / 2, done.y + done.h / 2, f.body, active ? C.background : C.text, "center", "middle");
   hits.push({ ...done, click: { type: "click", target: "done" } });
   if (s.reminder) text(ctx, s.reminder, w / 2, done.y - 6, f.small, C.highlight, "center", "bottom");
-  drawLegend(ctx, s.legend, w, h, f);
+  drawLegend(ctx, s.legend, w, h, f.legendBar);
   return hits.reverse(); // options before their rows
 }
 
