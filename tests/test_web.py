@@ -26,6 +26,40 @@ pytestmark = pytest.mark.skipif(
 )
 
 
+def _same_format_in_the_page(driver, rng: np.random.Generator) -> None:
+    """messages.js reads what messages.py packs, and packs what it reads (the page's own
+    module, loaded from the server)."""
+    import base64
+
+    from study.web import messages as wire
+
+    points = rng.uniform(-20, 20, (37, 2))
+    state = wire.pack_state(4321, 12.5, (1.25, -2.5, 0.75), np.array([0.5, -0.25, 1.0]), points,
+                            paused=True)  # fmt: skip
+    axes = tuple(float(np.float32(a)) for a in rng.uniform(-1, 1, 4))
+    got = driver.execute_async_script(
+        """const [b64, axes, done] = arguments;
+        import("/static/messages.js").then((M) => {
+          const bytes = Uint8Array.from(atob(b64), (c) => c.charCodeAt(0));
+          const s = M.unpackState(bytes.buffer);
+          const input = new Uint8Array(M.packInput(77, 4321, axes, 0x8001, 0x2a, true));
+          done({tick: s.tick, t: s.t, pose: s.pose, stick: s.stick, paused: s.paused,
+                points: Array.from(s.points), input: btoa(String.fromCharCode(...input))});
+        });""",
+        base64.b64encode(state).decode(), list(axes),
+    )  # fmt: skip
+    want = wire.unpack_state(state)
+    assert got["tick"] == 4321 and got["paused"] and got["t"] == pytest.approx(12.5)
+    assert got["pose"] == pytest.approx(want["pose"]) and got["stick"] == pytest.approx(
+        want["stick"]
+    )
+    assert np.array_equal(np.reshape(got["points"], (-1, 2)) / 100.0, want["points"])
+    page = base64.b64decode(got["input"])
+    assert page == wire.pack_input(77, 4321, axes, buttons=0x8001, keys=0x2A, gamepad=True)
+    msg = wire.unpack_input(page)
+    assert msg.held() == {"back", "right", "turn_right"} and msg.axes == pytest.approx(axes)
+
+
 def _replayed(instrument) -> dict:
     """The answers a form gets from 'right, then A' on every row and A on Done."""
     state = FormState(instrument)
@@ -51,6 +85,7 @@ def test_a_browser_drives_a_whole_session_and_the_store_is_what_it_did(tmp_path,
             driver.get(server.links["P01"])
             person = Person(driver)
             end = person.run()
+            _same_format_in_the_page(driver, np.random.default_rng(seed))
         finally:
             driver.quit()
     assert end["phase"] == "ended" and end["end"]["code"] == "C0DE42"
