@@ -155,7 +155,7 @@ def test_a_cut_connection_pauses_and_resumes_and_one_past_grace_aborts_resumably
 
     from tests.web_helpers import CuttableProxy
 
-    protocol = short_protocol(tmp_path, seed % 1000, timeout_s=4.0, grace_s=4.0)
+    protocol = short_protocol(tmp_path, seed % 1000, timeout_s=4.0, grace_s=8.0)
     db = str(tmp_path / "web.db")
     with served(protocol, db) as server:
         port = int(server.base.rsplit(":", 1)[1])
@@ -175,7 +175,7 @@ def test_a_cut_connection_pauses_and_resumes_and_one_past_grace_aborts_resumably
             proxy.blocked = True
             proxy.cut()
             engine = open_database(db, create=False)
-            for _ in range(300):  # past the grace period (4 s): aborted
+            for _ in range(300):  # past the grace period (8 s): aborted
                 with Session(engine) as s:
                     statuses = s.scalars(select(SessionRow.status)).all()
                 if statuses == ["aborted"]:
