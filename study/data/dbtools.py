@@ -446,9 +446,13 @@ def _cell(value: Any, is_json: bool) -> str:
     return str(value)
 
 
+# the server's bookkeeping, not study data: the invites' token hashes (issue 37)
+NOT_EXPORTED = frozenset({"invite"})
+
+
 def export(db: str | Path, out: str | Path, *, force: bool = False) -> dict[str, int]:
     """Write one CSV per table of the study database into folder ``out`` (the database is
-    opened read-only).
+    opened read-only; not the tables of :data:`NOT_EXPORTED`).
 
     Returns
     -------
@@ -466,7 +470,11 @@ def export(db: str | Path, out: str | Path, *, force: bool = False) -> dict[str,
     folder = Path(out)
     if folder.exists() and not folder.is_dir():
         raise ValueError(f"out: {out} must be a folder, and this is a file")
-    targets = [folder / f"{table.name}.csv" for table in Base.metadata.sorted_tables]
+    targets = [
+        folder / f"{table.name}.csv"
+        for table in Base.metadata.sorted_tables
+        if table.name not in NOT_EXPORTED
+    ]
     refuse_existing(targets, force=force)
     engine = open_database(db, create=False)
     folder.mkdir(parents=True, exist_ok=True)
@@ -475,7 +483,7 @@ def export(db: str | Path, out: str | Path, *, force: bool = False) -> dict[str,
         present = set(inspect(engine).get_table_names())
         with engine.connect() as conn:
             for table in Base.metadata.sorted_tables:
-                if table.name not in present:
+                if table.name not in present or table.name in NOT_EXPORTED:
                     continue  # order_slot in a database made before issue 20
                 if table.name.startswith("lsl_") and not _has_rows(conn, table):
                     continue  # the lab's streams: only in a study that recorded some
