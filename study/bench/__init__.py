@@ -34,6 +34,7 @@ GROUPS: dict[str, str] = {
     "power": "study.bench.power",
     "push": "study.bench.push",
     "lsl": "study.bench.lsl",
+    "web": "study.bench.web",
 }
 
 
