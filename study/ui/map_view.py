@@ -120,11 +120,14 @@ class MapView:
                 image = self._label(font, label)
                 surface.blit(image, image.get_rect(midbottom=(int(px[0]), int(px[1]) - 8)))
                 labels.append(label)
+        clip = surface.get_clip()
+        surface.set_clip(self.rect)  # hits beyond the map stay in its rectangle
         if len(points):
             for px, py in self.to_px(points).astype(int):
                 pygame.draw.circle(surface, LASER, (px, py), 2)
         if pose is not None:
             self._draw_robot(surface, pose, footprint, stick)
+        surface.set_clip(clip)
         return labels
 
     def _draw_object(self, surface: pygame.Surface) -> None:

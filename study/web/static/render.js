@@ -367,6 +367,8 @@ function drawMap(ctx, view, r, f) {
     text(ctx, label, px, py - 8, f.small, "black", "center", "bottom");
   }
   if (!st) return;
+  ctx.save(); // hits beyond the map stay in its rectangle, as the pygame screen keeps them
+  ctx.beginPath(); ctx.rect(r.x, r.y, r.w, r.h); ctx.clip();
   ctx.fillStyle = C.laser;
   for (let i = 0; i < st.points.length; i += 2) {
     const [px, py] = M.px(st.points[i] / 100, st.points[i + 1] / 100);
@@ -379,6 +381,7 @@ function drawMap(ctx, view, r, f) {
   const arrow = [[front, 0], [back * 0.4, half * 0.75], [back * 0.1, 0], [back * 0.4, -half * 0.75]];
   poly(ctx, arrow.map(([a, b]) => M.px(...toMap(st.pose, a, b))), "white", "black");
   drawStick(ctx, st.pose, st.stick, M);
+  ctx.restore();
 }
 
 function drawStick(ctx, pose, stick, M) {
