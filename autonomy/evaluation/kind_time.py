@@ -1,31 +1,11 @@
 """The kind-and-time recogniser (:mod:`autonomy.kind_time`, issue 40) in the offline
-evaluation (thesis Sec. 7.2.2, 7.3.2, 7.4.1, 7.4.3): its intent prior fitted on training
-ticks as ``asa train`` fits the shipped model's, replayed tick by tick along held-out
-runs on the SOGP's posterior means, and what the evaluation reads off it.
-
-The evaluation's SOGP learns the task types, not DP-GMM primitives, so the recogniser's
-primitives ``j`` are the classifier's task classes: ``p(kind | j)``, the execution distance
-per class, the approach distance and the rank prior are fitted on the training ticks
-labelled with the task type the SOGP was trained on (``asa train`` labels them with the
-DP-GMM cluster the SOGP was trained on). A task class sees one kind of component, so the
-kind term is sharper here than with primitives that mix task types.
-
-Per tick the recogniser sees every candidate the demonstration recorded (as the
-classifiers do; the mode keeps the nearest ``candidates``), nearest first; a tick whose
-normalised translational command is below ``min_input`` runs :meth:`idle` (the mode's
-"no input"). What is read off (choices: docs/decisions.md, "The kind-and-time recogniser
-in the evaluation"):
-
-- the decision (trajectory rates, Sec. 7.2.2): the task its kind and class name
-  (:func:`autonomy.task_types.contextual_task`) on its most believed candidate when it is
-  decisive (``beta > 0``, the mode would assist), else none;
-- the most probable component (ACR, Sec. 7.4.1): the candidate with the most belief,
-  decisive or not (on an idle tick the most believed of the tick's candidates);
-- the winning feature (MICAD): that candidate's feature, assigned to its best class;
-- the normalised entropy (Eq. 7.7) of the belief over its hypotheses, the tick's
-  candidates and no task (``log(n + 1)`` its maximum; 1 before any belief), with the
-  belief in no task beside it: a belief sure of "no task" has a low entropy too, and is
-  the recogniser's way of not knowing a task.
+evaluation (thesis Sec. 7.2.2, 7.3.2, 7.4.1, 7.4.3): its intent prior fitted on a fold's
+training ticks as ``asa train`` fits the shipped model's (the evaluation's SOGP classes,
+task types, standing for the primitives), replayed tick by tick along held-out runs on
+the SOGP's posterior means, and what the evaluation reads off it: the decisive task and
+target (trajectory rates), the most believed candidate (ACR, MICAD) and the belief's
+normalised entropy (Eq. 7.7) with its belief in no task (introspection). Choices:
+docs/decisions.md, "autonomy/evaluation/kind_time.py".
 """
 
 from __future__ import annotations
