@@ -2,7 +2,8 @@
 alone (``asa bench --only web``; issue 37). Each client opens its invite's link as the
 page does (``static/app.js``) and speaks the wire protocol of :mod:`study.web.messages`:
 the browser check and the pings of the latency gate answered, ``STATE`` messages decoded,
-``CAMERA`` frames counted (not decoded), and an ``INPUT`` 20 times a second carrying the
+``CAMERA`` frames counted (not decoded), and an ``INPUT`` for every state received (as a
+page sends one on the animation frame that drew it; 20 Hz without states) carrying the
 last tick received (the page's "drawn") and a rising sequence number.
 
 The scripted person behind it presses the standard gamepad's A on a page, right then A on
@@ -15,6 +16,7 @@ session; :func:`run_clients` is the entry.
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import json
 import math
 import time
@@ -31,8 +33,8 @@ from study.ui.sticks import GamepadMapping
 from study.web import messages as wire
 from study.web.link import STD_AXES, STD_BUTTONS
 
-INPUT_HZ = 20.0  # [Hz] input messages a client sends (the control tick's rate)
-HOLD = 3  # input periods a scripted press is held, and then released (150 ms each)
+INPUT_HZ = 20.0  # [Hz] input messages a client sends while no state comes
+HOLD = 3  # inputs a scripted press is held for, then released for (about 150 ms each)
 STICK = 0.7  # the stick's deflection towards the goal
 RIGHT = 15  # the standard mapping's D-pad right
 WINDOW = (1280, 800)  # [px] the window the client reports to the browser check
@@ -99,6 +101,7 @@ class ProtocolClient:
         self._since: float | None = None  # [s] monotonic, this trial's first state
         self._last_state = 0.0  # [s] monotonic
         self._question = ""
+        self._drawn = asyncio.Event()  # set by a state not yet answered
 
     @property
     def ws_url(self) -> str:
@@ -193,6 +196,7 @@ class ProtocolClient:
             state = wire.unpack_state(data)
             self._tick, self._pose = state["tick"], state["pose"]
             self.record.states += 1
+            self._drawn.set()
             self._last_state = time.monotonic()
             if self.screen is not None and self.screen["kind"] == "drive" and self._since is None:
                 self._since = self._last_state
@@ -231,10 +235,12 @@ class ProtocolClient:
         return (axes[0], axes[1], axes[2], axes[3])
 
     async def _send_inputs(self, ws: aiohttp.ClientWebSocketResponse) -> None:
-        """An ``INPUT`` every 1/20 s on a fixed schedule (a late one does not shift it)."""
-        period = 1.0 / INPUT_HZ
-        due = time.monotonic()
+        """An ``INPUT`` as soon as a state arrived (a page answers on its next animation
+        frame), and 1/20 s after the last one when none did (pages, a late state)."""
         while not ws.closed:
+            with contextlib.suppress(TimeoutError):
+                await asyncio.wait_for(self._drawn.wait(), 1.0 / INPUT_HZ)
+            self._drawn.clear()
             buttons = self._buttons.popleft() if self._buttons else 0
             self._seq += 1
             payload = wire.pack_input(self._seq, self._tick, self._stick(), buttons=buttons,
@@ -244,8 +250,6 @@ class ProtocolClient:
             except (ConnectionError, RuntimeError):
                 return
             self.record.inputs += 1
-            due = max(due + period, time.monotonic() - period)
-            await asyncio.sleep(max(0.0, due - time.monotonic()))
 
 
 async def _every(
