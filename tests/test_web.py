@@ -186,6 +186,8 @@ def test_a_browser_drives_a_whole_session_and_the_store_is_what_it_did(tmp_path,
     assert row["participant"] == "P01" and row["ticks"] >= 40 and row["connections_lost"] == 0
     assert 0 <= row["age_median"] <= row["age_p95"] <= row["age_worst"]
     assert 0 < row["rtt_median_ms"] <= row["rtt_p95_ms"] <= row["rtt_worst_ms"]
+    assert (row["hidden_elsewhere"], row["focus_lost_elsewhere"]) == (3, 3)  # three forms
+    assert (row["hidden_in_trials"], row["focus_lost_in_trials"]) == (1, 1)
 
 
 def _events(s: Session, trial_id: int) -> list[str]:
