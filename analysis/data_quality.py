@@ -2,8 +2,11 @@
 "Participants in a browser"): per participant, how old the input was that drove each tick
 [ticks of 50 ms] and the round trip of the state it answered [ms] (median, 95th percentile,
 worst), the ticks driven on stale input (older than the protocol's ``[web] stale_ticks``,
-4 by default) and the connections lost. Read from ``sample.input_age_ticks`` and
-``sample.rtt_ms`` (revision 0005), which only a browser participant's ticks have.
+4 by default), the connections lost, and how often the page was hidden or lost the focus
+over the whole session, during trials and on the other screens (forms, breaks, ...).
+Read from ``sample.input_age_ticks`` and ``sample.rtt_ms`` (revision 0005), which only a
+browser participant's ticks have, and from the ``page_hidden`` and ``focus_lost`` events
+(of a trial, or of the session with no trial).
 
 Descriptive only: a participant with many stale ticks drove a laggier robot than the
 others; whether to exclude them is the study's decision, made before the data are seen.
@@ -20,7 +23,9 @@ import pandas as pd
 COLUMNS = (
     "participant", "ticks", "age_median", "age_p95", "age_worst", "rtt_median_ms",
     "rtt_p95_ms", "rtt_worst_ms", "stale_ticks", "stale_share", "connections_lost",
+    "hidden_in_trials", "hidden_elsewhere", "focus_lost_in_trials", "focus_lost_elsewhere",
 )  # fmt: skip
+AWAY = {"hidden": "page_hidden", "focus_lost": "focus_lost"}  # column stem -> event kind
 DEFAULT_STALE_TICKS = 4  # study.web.settings.WebSettings.stale_ticks
 
 
@@ -45,6 +50,7 @@ def describe(tables: Mapping[str, pd.DataFrame]) -> pd.DataFrame | None:
     timed = sample.loc[sample["input_age_ticks"].notna(), ["trial_id", "input_age_ticks", "rtt_ms"]]
     timed = timed.merge(trial, on="trial_id").merge(people, on="participant_id")
     lost = _connections_lost(tables, trial, people)
+    away = _away(tables, people)
     rows = []
     for code, g in timed.groupby("code", sort=True):
         age = g["input_age_ticks"].to_numpy(dtype=float)
@@ -56,6 +62,7 @@ def describe(tables: Mapping[str, pd.DataFrame]) -> pd.DataFrame | None:
             "rtt_worst_ms": float(rtt.max()) if len(rtt) else np.nan,
             "stale_ticks": int((age > stale).sum()), "stale_share": float((age > stale).mean()),
             "connections_lost": int(lost.get(code, 0)),
+            **{c: int(away.get((code, c), 0)) for c in COLUMNS[-4:]},
         })  # fmt: skip
     return pd.DataFrame(rows, columns=list(COLUMNS))
 
@@ -71,6 +78,23 @@ def _connections_lost(
         .merge(people, on="participant_id")
     )
     return lost.groupby("code").size().to_dict()
+
+
+def _away(tables: Mapping[str, pd.DataFrame], people: pd.DataFrame) -> dict[tuple, int]:
+    """(code, column) -> the page hidden or its focus lost over the whole session: during
+    trials (events of a trial) and on every other screen (events of the session)."""
+    event = tables["event"]
+    event = event.loc[event["kind"].isin(list(AWAY.values())), ["session_id", "trial_id", "kind"]]
+    sessions = tables["session"][["id", "participant_id"]].rename(columns={"id": "session_id"})
+    event = event.merge(sessions, on="session_id").merge(people, on="participant_id")
+    out: dict[tuple, int] = {}
+    for stem, kind in AWAY.items():
+        of_kind = event[event["kind"] == kind]
+        for where, rows in (("in_trials", of_kind["trial_id"].notna()),
+                            ("elsewhere", of_kind["trial_id"].isna())):  # fmt: skip
+            for code, n in of_kind[rows].groupby("code").size().items():
+                out[(code, f"{stem}_{where}")] = int(n)
+    return out
 
 
 def section(tables: Mapping[str, pd.DataFrame], write_csv, folder) -> dict | None:

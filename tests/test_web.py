@@ -9,6 +9,7 @@ import json
 import shutil
 import subprocess
 import sys
+import time
 
 import numpy as np
 import pytest
@@ -60,6 +61,51 @@ def _same_format_in_the_page(driver, rng: np.random.Generator) -> None:
     assert msg.held() == {"back", "right", "turn_right"} and msg.axes == pytest.approx(axes)
 
 
+AWAY_JS = """
+const hide = (hidden) => {
+  Object.defineProperty(document, "hidden", {value: hidden, configurable: true});
+  document.dispatchEvent(new Event("visibilitychange"));
+};
+hide(true); window.dispatchEvent(new Event("blur"));
+hide(false); window.dispatchEvent(new Event("focus"));
+"""
+
+
+class Wandering(Person):
+    """The scripted person, who hides the page and leaves its window on every form and on
+    the first driving screen before going on (another tab, another window)."""
+
+    def _form(self, screen: dict) -> None:
+        self.js(AWAY_JS)
+        super()._form(screen)
+
+    def _drive(self, screen: dict) -> None:
+        if screen["drive"] and not self.pushes:
+            time.sleep(0.3)
+            self.js(AWAY_JS)
+        super()._drive(screen)
+
+
+def _away_stored(s: Session, forms: int) -> None:
+    """The page's hidden and focus events of every form stored as the session's, with the
+    phase and the screen; those of the driving screen as the trial's."""
+    from study.data.storage import Event
+
+    rows = s.scalars(
+        select(Event).where(Event.kind.in_(("page_hidden", "page_visible", "focus_lost",
+                                            "focus_back")))
+    ).all()  # fmt: skip
+    outside = [e for e in rows if e.trial_id is None]
+    assert sorted(e.kind for e in outside) == sorted(
+        ["page_hidden", "page_visible", "focus_lost", "focus_back"] * forms
+    )
+    assert all(e.detail["screen"] == "form" and e.t > 0 for e in outside)
+    where = {(e.detail["phase"], e.detail["tag"]) for e in outside}
+    assert where == {("experience", "form_experience"), ("main", "form_nasa_tlx")}
+    inside = [e for e in rows if e.trial_id is not None]
+    assert {e.kind for e in inside} == {"page_hidden", "page_visible", "focus_lost", "focus_back"}
+
+
 def _replayed(instrument) -> dict:
     """The answers a form gets from 'right, then A' on every row and A on Done."""
     state = FormState(instrument)
@@ -83,7 +129,7 @@ def test_a_browser_drives_a_whole_session_and_the_store_is_what_it_did(tmp_path,
         driver = browser()
         try:
             driver.get(server.links["P01"])
-            person = Person(driver)
+            person = Wandering(driver)
             end = person.run()
             _same_format_in_the_page(driver, np.random.default_rng(seed))
         finally:
@@ -114,6 +160,7 @@ def test_a_browser_drives_a_whole_session_and_the_store_is_what_it_did(tmp_path,
             a, b = sorted((ids[left], ids[right]))
             key = f"pair:{a}|{b}" if f"pair:{a}|{b}" in chosen else f"pair:{b}|{a}"
             assert chosen[key] == ids[right]  # the page pressed right, then A
+        _away_stored(s, len(person.forms))
         answers = s.scalars(select(Question.response).where(Question.response.is_not(None))).all()
         assert answers and all(answers) and len(answers) <= person.answered
         for trial in s.scalars(select(Trial).where(Trial.phase == "main")):
@@ -139,6 +186,8 @@ def test_a_browser_drives_a_whole_session_and_the_store_is_what_it_did(tmp_path,
     assert row["participant"] == "P01" and row["ticks"] >= 40 and row["connections_lost"] == 0
     assert 0 <= row["age_median"] <= row["age_p95"] <= row["age_worst"]
     assert 0 < row["rtt_median_ms"] <= row["rtt_p95_ms"] <= row["rtt_worst_ms"]
+    assert (row["hidden_elsewhere"], row["focus_lost_elsewhere"]) == (3, 3)  # three forms
+    assert (row["hidden_in_trials"], row["focus_lost_in_trials"]) == (1, 1)
 
 
 def _events(s: Session, trial_id: int) -> list[str]:

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import os
 import tempfile
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -37,6 +38,7 @@ from study.data.storage import (
     database_file,
     utc_now,
 )
+from study.engine.events import jsonable
 from study.engine.protocol import (
     Baseline,
     Briefing,
@@ -187,6 +189,8 @@ class SessionRunner:
         self.scenes = Scenes(self.recordings / "maps")
         self.study_tag = _study_tag(engine, person.study_id)
         self.trials: list[TrialSummary] = []
+        self._phase = ""  # the kind of the phase running (session events carry it)
+        self._started = time.monotonic()  # [s] monotonic, when this run began
 
     # -------------------------------------------------------------- database helpers
 
@@ -220,16 +224,25 @@ class SessionRunner:
             self.lsl.session_event("phase_done", **detail)
 
     def _store(
-        self, rows: Sequence[Response], kind: str, detail: dict, trial_id: int | None = None
-    ) -> None:
-        """``rows`` and one event of this session (at ``t = 0``) in one transaction."""
+        self, rows: Sequence[Response], kind: str, detail: dict, trial_id: int | None = None,
+        *, t: float = 0.0,
+    ) -> None:  # fmt: skip
+        """``rows`` and one event of this session (at ``t``) in one transaction."""
         with Session(self.engine) as s, s.begin():
             s.add_all(rows)
             s.add(
-                Event(
-                    session_id=self.session_id, trial_id=trial_id, t=0.0, kind=kind, detail=detail
-                )
+                Event(session_id=self.session_id, trial_id=trial_id, t=t, kind=kind, detail=detail)
             )
+
+    def session_event(self, kind: str, **detail: Any) -> None:
+        """An event of the session outside any trial, stored at once: ``phase`` the
+        protocol phase running, ``t`` [s] since this run of the session started (monotonic
+        clock; ``created_at`` is the wall clock, UTC)."""
+        t = time.monotonic() - self._started
+        full = {"phase": self._phase, **detail}
+        self._store((), kind, jsonable(full), t=round(t, 3))
+        if self.lsl is not None:
+            self.lsl.session_event(kind, **full)
 
     def _instruction(self, kind: str) -> str:
         return self.protocol.ui.instructions.get(kind, "")
@@ -494,10 +507,13 @@ class SessionRunner:
         lsl = self.lsl
         if lsl is not None:
             lsl.session_event("session_started", session=self.session_id)
+        self._started = time.monotonic()
+        self.participant.attach_session(self.session_event)
         for phase in self.protocol.phases:
             handler = _PHASES.get(type(phase))
             if handler is None:
                 continue
+            self._phase = phase.kind
             if lsl is not None:
                 lsl.session_event("phase_started", phase=phase.kind)
             outcome = handler(self, phase)

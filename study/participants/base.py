@@ -38,6 +38,11 @@ class Participant(Protocol):
         """NASA-TLX pairwise comparisons: each pair (as presented) -> the chosen subscale."""
         ...
 
+    def attach_session(self, event: Callable[..., None]) -> None:
+        """Before the session's first phase: ``event(kind, **detail)``, which stores an event
+        row of the session outside any trial, with the phase it happened in."""
+        ...
+
     def attach(self, world: Any, event: Callable[..., None]) -> None:
         """Before :meth:`begin_trial`: the trial's ``sim.world.World`` (read, never stepped)
         and ``event(t, kind, **detail)``, which stores an event row of the trial."""
@@ -74,6 +79,9 @@ class ParticipantBase:
     parameters: dict[str, Any] = {}  # noqa: RUF012 (read only; instances set their own)
     learns: bool = True
     shows_camera: bool = False
+
+    def attach_session(self, event: Callable[..., None]) -> None:
+        """Nothing to store outside trials."""
 
     def attach(self, world: Any, event: Callable[..., None]) -> None:
         """Nothing to attach."""

@@ -14,7 +14,9 @@ A page that goes away (or falls silent while driving) pauses the trial through t
 participant's pause, with ``connection_lost`` / ``connection_back`` events; one away
 longer than ``[web] grace_s`` ends the session (:class:`ConnectionGone`), resumable. The
 experimenter's abort arrives as a stop: during a trial through the trial's abort, on a
-page as :class:`SessionStopped`.
+page as :class:`SessionStopped`. The page hidden or shown, its focus lost or back and the
+messages the server dropped are stored as the trial's events during its ticks, as the
+session's (with the phase and the screen) on every other screen.
 """
 
 from __future__ import annotations
@@ -98,7 +100,9 @@ class WebParticipant(ParticipantBase):
             self._jpeg = cv2
         self.control = control
         self.world: Any = None
-        self._event: Callable[..., None] | None = None
+        self._event: Callable[..., None] | None = None  # the trial's event writer
+        self._session_event: Callable[..., None] | None = None  # the session's (no trial)
+        self._where: dict[str, str] = {}  # the screen shown: its kind, tag and title
         self._grids: dict[str, OccupancyGrid] = {}
         self._map: tuple[bytes, str] | None = None  # the scene's MAP and JSON messages
         self._map_id = 0
@@ -124,7 +128,12 @@ class WebParticipant(ParticipantBase):
 
     def _show(self, screen: describe.Screen) -> None:
         """Send ``screen`` and remember it for a page that connects later."""
-        self._screen = wire.server_json("screen", screen=describe.to_json(screen))
+        described = describe.to_json(screen)
+        self._screen = wire.server_json("screen", screen=described)
+        self._where = {
+            "screen": described["kind"], "tag": described.get("tag", described["kind"]),
+            "title": described.get("title") or described.get("progress", ""),
+        }  # fmt: skip
         self._opened = self.link.opened
         self.link.send(self._screen)
 
@@ -159,12 +168,13 @@ class WebParticipant(ParticipantBase):
     ) -> None:
         """Show a page until ``handle(presses, messages)`` says it is done; send it again
         whenever it changed. ``repeat``: held directions repeat (forms)."""
-        self.link.clear()
+        self._clear()
         self._show(show())
         repeats = NavRepeat()
         while True:
             self._wait()
             actions, msgs = self.link.take()
+            self._outside_trial(msgs)
             if repeat:
                 actions += repeats.step(time.perf_counter(), self.link.held_nav())
             if not actions and not msgs:
@@ -172,6 +182,18 @@ class WebParticipant(ParticipantBase):
             if handle(actions, msgs):
                 return
             self._show(show())
+
+    def _clear(self) -> None:
+        """Forget the presses so far (a new page: presses before it do not count); the
+        page's events among the messages are stored."""
+        _, msgs = self.link.take()
+        self._outside_trial(msgs)
+
+    def _outside_trial(self, msgs: list[dict[str, Any]]) -> None:
+        """The page's events (:meth:`_page_events`) as the session's, with the screen."""
+        for kind, detail in self._page_events(msgs):
+            if self._session_event is not None:
+                self._session_event(kind, **self._where, **detail)
 
     def _text(self, page: describe.PageScreen) -> None:
         def handle(actions: list[str], msgs: list[dict[str, Any]]) -> bool:
@@ -228,6 +250,10 @@ class WebParticipant(ParticipantBase):
 
     # -------------------------------------------------------------- trials
 
+    def attach_session(self, event: Callable[..., None]) -> None:
+        """The session's event writer (the page's events outside trials)."""
+        self._session_event = event
+
     def attach(self, world: Any, event: Callable[..., None]) -> None:
         """The trial's world (read only) and its event writer; the scene's map."""
         self.world, self._event = world, event
@@ -257,7 +283,7 @@ class WebParticipant(ParticipantBase):
         self._tick, self._lost, self._confirm = 0, False, ("", 0.0)
         self._strip = describe.DriveStrip()
         self.rtts, self.ages = [], []
-        self.link.clear()
+        self._clear()
         self.link.new_trial()
         self._resend_drive()
 
@@ -274,7 +300,9 @@ class WebParticipant(ParticipantBase):
         self._tick += 1
         toggles = self._connection(screen)
         actions, msgs = link.take()
-        self._page_events(screen.t, msgs)
+        for kind, detail in self._page_events(msgs):
+            if self._event is not None:
+                self._event(screen.t, kind, **detail)
         answer: bool | None = None
         for a in actions:
             if a == "pause" and not self._lost:
@@ -322,21 +350,22 @@ class WebParticipant(ParticipantBase):
             return 1 if screen.paused else 0
         return 0
 
-    def _page_events(self, t: float, msgs: list[dict[str, Any]]) -> None:
-        """The page hidden or shown, focus lost or back, messages the server dropped since
-        the last such event (by reason): events of the trial."""
-        if self._event is None:
-            return
+    def _page_events(self, msgs: list[dict[str, Any]]) -> list[tuple[str, dict[str, Any]]]:
+        """The page hidden or shown, focus lost or back, and the messages the server dropped
+        since the last such event (by reason), as (kind, detail): a trial's events during
+        its ticks, the session's on every other screen."""
+        out: list[tuple[str, dict[str, Any]]] = []
         drops = dict(self.link.drops)
         if drops != self._drops:
             new = {k: v - self._drops.get(k, 0) for k, v in drops.items()}
-            self._event(t, "messages_dropped", **{k: v for k, v in new.items() if v})
+            out.append(("messages_dropped", {k: v for k, v in new.items() if v}))
             self._drops = drops
         for m in msgs:
             if m["type"] == "visibility":
-                self._event(t, "page_hidden" if m["hidden"] else "page_visible")
+                out.append(("page_hidden" if m["hidden"] else "page_visible", {}))
             elif m["type"] == "focus":
-                self._event(t, "focus_back" if m["focused"] else "focus_lost")
+                out.append(("focus_back" if m["focused"] else "focus_lost", {}))
+        return out
 
     def _send_tick(self, obs: Observation, screen: ScreenState, stick: np.ndarray) -> None:
         """The tick's state, the strip when it changed, a camera frame when one is due."""
