@@ -77,7 +77,8 @@ block_size = 5""",
     )
     .replace(
         '"tlx_raw"]',
-        '"secondary_answer_time_s", "secondary_errors", "tlx_raw"]\nsecondary_baseline_level = true',
+        '"secondary_answer_time_s", "secondary_errors", "tlx_raw"]\n'
+        "secondary_baseline_level = true",
     )
 )
 
