@@ -56,6 +56,7 @@ metrics = ["completion_time_s", "collisions", "score_s", "tlx_raw"]
 # the cluttered room from A to B with the secondary task and its baseline: every block
 FULL = (
     SMALL.replace('name = "small-calibrate"', 'name = "full-calibrate"')
+    .replace("timeout_s = 90.0", "timeout_s = 400.0")
     .replace(
         """[[phases]]
 kind = "main"
