@@ -21,7 +21,7 @@ import jinja2
 import pandas as pd
 from markupsafe import Markup
 
-from analysis import crashes, lab_streams
+from analysis import crashes, data_quality, lab_streams
 from analysis import figures as fig
 from analysis.data import BASELINE, AnalysisConfig, Frames, StudyData, load_study, tidy
 from analysis.methods import methods, methods_markdown
@@ -324,6 +324,7 @@ def build_report(
     extra = _extra_figures(data, frames, out, written)
     crash = _crashes(data, frames, out, written) if data.config.end_on_collision else None
     lab = _lab_streams(data, out, written)
+    quality = data_quality.section(data.tables, written.csv, out)
     results_json = out / "results.json"
     stored = results if recognition is None else {**results, "recognition": recognition}
     results_json.write_text(json.dumps(stored, indent=1, allow_nan=False), encoding="utf-8")
@@ -331,7 +332,7 @@ def build_report(
     (out / "methods.md").write_text(methods_markdown(section), encoding="utf-8")
     html = _render_html(
         data, frames, positions, orders, sections, skipped, extra, recognition, section, crash,
-        table1=table1, lab=lab,
+        table1=table1, lab=lab, quality=quality,
     )  # fmt: skip
     html_path = out / "report.html"
     html_path.write_text(html, encoding="utf-8")
@@ -531,6 +532,7 @@ def _render_html(
     *,
     table1: pd.DataFrame,
     lab: dict | None = None,
+    quality: dict | None = None,
 ) -> str:
     """``templates/report.html.j2`` rendered with the study's values."""
     counted = set(frames.trials["participant"])
@@ -574,6 +576,7 @@ def _render_html(
         methods=section,
         crash=crash,
         lab=lab,
+        quality=quality,
         warnings=all_warnings,
         aborted=frames.aborted.to_dict("records"),
         incomplete=incomplete.to_dict("records"),

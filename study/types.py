@@ -42,6 +42,10 @@ class ParticipantInput:
     u: np.ndarray = field(default_factory=lambda: _ZERO3)  # (3,) robot frame [m/s, m/s, rad/s]
     answer: bool | None = None  # Yes (True) / No (False) pressed this tick, None: neither
     pause: bool = False  # the pause button is pressed this tick
+    # a browser participant's input (study.web): ticks since the state it answered was
+    # drawn, and that state's round trip [ms]; None for others
+    age_ticks: int | None = None
+    rtt_ms: float | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -80,6 +84,8 @@ class TickRecord:
     true_task: str = ""  # ground truth from the participant's ``intention()``
     true_target: str = ""
     lsl_clock_s: float | None = None  # [s] LSL local_clock() when the tick happened
+    input_age_ticks: int | None = None  # ParticipantInput.age_ticks
+    rtt_ms: float | None = None  # [ms] ParticipantInput.rtt_ms
 
     def row(self, trial_id: int) -> dict[str, object]:
         """Column values of the ``sample`` table for this tick.
@@ -111,4 +117,6 @@ class TickRecord:
             "true_task": self.true_task,
             "true_target": self.true_target,
             "lsl_clock_s": self.lsl_clock_s,
+            "input_age_ticks": self.input_age_ticks,
+            "rtt_ms": self.rtt_ms,
         }

@@ -12,6 +12,7 @@ import pytest
 from sklearn.metrics import fbeta_score
 
 from autonomy.evaluation import (
+    CORRESPONDENCE,
     METHODS,
     RECOGNISERS,
     EvaluationSettings,
@@ -19,13 +20,18 @@ from autonomy.evaluation import (
     evaluate,
     f05_with_targets,
     fit_method,
+    fit_prior,
     format_report,
     hard_negatives,
+    replay_run,
     run_folds,
     summarise_repeats,
     way_points_of,
 )
-from autonomy.features import task_features
+from autonomy.evaluation.folds import prepare_data
+from autonomy.evaluation.kind_time import run_means, runs_of
+from autonomy.features import FeatureScaler, task_features
+from autonomy.kind_time import KindTimeRecogniser
 from autonomy.training import synthetic_demonstrations
 from study.cli import main
 
@@ -49,8 +55,11 @@ FAST = EvaluationSettings(
 
 def synthetic_demos(rng: np.random.Generator, runs: int = 4, steps: int = 30):
     """Synthetic demonstrations with candidates: the demonstrated target plus two
-    distractors of other kinds per tick (ids fixed per run)."""
+    distractors of other kinds per tick (ids fixed per run); the first third of every
+    run approaches its target, the rest executes the task."""
     q, task, run = synthetic_demonstrations(rng, runs=runs, steps=steps)
+    first = np.r_[0, np.flatnonzero(np.diff(run)) + 1]
+    step = np.arange(len(run)) - first[np.searchsorted(first, np.arange(len(run)), "right") - 1]
     kinds = list(KINDS.values())
     points, ids, ckinds, offsets, target = [], [], [], [0], []
     shift = {r: rng.uniform(-2.5, 2.5, size=(2, 2)) for r in np.unique(run)}
@@ -75,6 +84,7 @@ def synthetic_demos(rng: np.random.Generator, runs: int = 4, steps: int = 30):
         run=run,
         task=task,
         target=np.array(target),
+        phase=np.where(step < steps // 3, "approach", "execute"),
         cand_offsets=np.array(offsets),
         cand_points=np.array(points),
         cand_ids=np.array(ids),
@@ -173,6 +183,97 @@ def test_the_sogp_recognises_synthetic_tasks_and_targets_well(result):
     # Three well-separated synthetic patterns, distractors 0-3.5 m off the target.
     assert result["f05"]["sogp"]["macro"] > 0.6
     assert result["trajectory_rates"]["sogp"]["success"] > 0.5
+
+
+def test_kind_time_is_reported_beside_the_sogp(result):
+    assert set(result["acr"]) == set(result["micad"]) == set(CORRESPONDENCE)
+    cr = result["correspondence_rates"]
+    assert set(cr) == set(CORRESPONDENCE) and set(cr["kind_time"]) == set(cr["sogp"])
+    assert all(0.0 <= v <= 1.0 for v in cr["kind_time"].values())
+    assert result["acr"]["kind_time"] == pytest.approx(np.mean(list(cr["kind_time"].values())))
+    assert result["micad"]["kind_time"] > 0.0
+    rates = result["trajectory_rates"]["kind_time"]
+    assert all(0.0 <= v <= 1.0 for v in rates.values()) and sum(rates.values()) == 1.0
+    for side in ("seen", "unseen"):
+        belief = result["kind_time_introspection"][side]
+        assert 0.0 <= belief["entropy"] <= 1.0 and 0.0 <= belief["decisive"] <= 1.0
+        assert 0.0 <= belief["no_task"] <= 1.0
+    text = format_report(result)
+    acr_line = next(line for line in text.splitlines() if line.startswith("ACR "))
+    assert len(acr_line.split()) == 1 + len(CORRESPONDENCE)
+    assert "kind_time" in text.split("trajectory rates")[1]
+    # three well-separated patterns, two distractors per tick: a random pick is right on
+    # a third of the ticks; the most believed candidate is the target on most of them
+    assert result["acr"]["kind_time"] > 0.5
+
+
+def test_a_folds_intent_prior_sees_only_its_training_runs(rng, monkeypatch):
+    import autonomy.evaluation.jobs as jobs
+    import autonomy.evaluation.kind_time as kt
+
+    demos = synthetic_demos(rng, runs=2, steps=12)
+    fold_calls, pair_calls, current = [], [], {}
+    real_fold, real_prior = jobs.kind_time_fold, kt.demonstrated_prior
+
+    def fold_spy(data, k, *args):
+        current["held_out"] = set(np.unique(data.run[data.fold == k]).tolist())
+        current["training_ticks"] = int(np.sum(data.fold != k))
+        try:
+            return real_fold(data, k, *args)
+        finally:
+            current.clear()
+
+    def prior_spy(q, labels, candidates, executing):
+        runs = {int(str(i).rsplit("_", 1)[1]) for i in candidates.ids}  # ids name the run
+        if current:
+            fold_calls.append((runs, len(q), dict(current)))
+        else:
+            pair_calls.append((runs, set(np.asarray(labels).tolist())))
+        return real_prior(q, labels, candidates, executing)
+
+    monkeypatch.setattr(jobs, "kind_time_fold", fold_spy)
+    monkeypatch.setattr(kt, "demonstrated_prior", prior_spy)
+    evaluate(demos, kinds=KINDS, settings=FAST)
+    every = set(np.unique(demos.run).tolist())
+    assert len(fold_calls) == FAST.folds and len(pair_calls) == 3
+    for runs, n, fold in fold_calls:  # every tick of the training runs, none held out
+        assert runs.isdisjoint(fold["held_out"]) and runs | fold["held_out"] == every
+        assert n == fold["training_ticks"] == np.isin(demos.run, list(runs)).sum()
+    held_out = sorted(r for _, _, fold in fold_calls for r in fold["held_out"])
+    assert held_out == sorted(every)  # each run held out by one fold
+    task_of = {int(r): demos.task[demos.run == r][0] for r in every}
+    for runs, labels in pair_calls:  # introspection: the pair's task types only
+        assert len(labels) == 2 and len({task_of[r] for r in runs}) == 2
+
+
+def test_kind_time_replay_names_only_the_ticks_candidates_and_decays_when_idle(rng):
+    demos = synthetic_demos(rng, runs=2, steps=20)
+    idle = np.zeros(len(demos.q), dtype=bool)
+    for r in np.unique(demos.run):  # the driver lets go of the stick for 5 ticks a run
+        start = np.flatnonzero(demos.run == r)[10]
+        idle[start : start + 5] = True
+    demos.u_norm[idle] = 0.0
+    data = prepare_data(demos, kinds=KINDS, settings=FAST, fold_rng=rng)
+    train = np.flatnonzero(data.fold != 0)
+    scaler = FeatureScaler().fit(data.X_true[train])
+    sogp = fit_method(
+        "sogp", scaler.transform(data.X_true[train]), data.y[train], data.run[train],
+        settings=FAST, rng=rng, tune=False,
+    )  # fmt: skip
+    rec = KindTimeRecogniser(fit_prior(data, train, sogp.classes), FAST.kind_time)
+    Z = scaler.transform(data.X_cand)
+    for ticks in runs_of(data, np.flatnonzero(data.fold == 0)):
+        replay = replay_run(rec, run_means(sogp.model, Z, data, ticks), data, ticks)
+        for n, i in enumerate(ticks):
+            assert replay.row[n] == -1 or data.off[i] <= replay.row[n] < data.off[i + 1]
+        assert set(replay.col.tolist()) <= {-1, *range(len(sogp.classes))}
+        assert np.all((replay.entropy >= 0) & (replay.entropy <= 1))
+        assert np.all((replay.no_task >= 0) & (replay.no_task <= 1))
+        still = idle[ticks]
+        assert np.all(replay.col[still] == -1) and not replay.decisive[still].any()
+        # Eq. (4.14) alone mixes the belief with the uniform: its entropy never falls
+        h = replay.entropy[still]
+        assert np.all(np.diff(h) >= -1e-12) and h[-1] > replay.entropy[np.argmax(still) - 1]
 
 
 def test_repeats_summarise_the_f05_over_seeds(result):
@@ -347,6 +448,26 @@ def test_cache_records_once_and_reports_another_hash(recorded, tmp_path, monkeyp
     assert cache_root() == tmp_path / "xdg" / "asa-study"
 
 
+def test_passage_normals_come_from_the_runs_scenes(recorded):
+    from study.jobs.demonstrations import candidate_normals, load_demonstrations
+
+    demos = load_demonstrations(recorded)
+    normals, missing = candidate_normals(demos)
+    assert missing == [] and normals.shape == demos.cand_points.shape
+    passage = np.isin(demos.cand_kinds, ("doorway", "gap", "dock"))
+    assert passage.any()
+    # unit crossing directions, rotated only (1e-12: a few roundings of cos and sin)
+    np.testing.assert_allclose(np.hypot(*normals[passage].T), 1.0, atol=1e-12)
+    assert not normals[~passage].any()  # objects and walls have none
+    # another scene of the run's name, or none shipped: its runs keep zero normals
+    runs = [{**r, "scene": "cluttered_room"} for r in demos.runs[:1]] + [
+        {**r, "scene": "not_a_shipped_scene"} for r in demos.runs[1:]
+    ]
+    other, missing = candidate_normals(replace(demos, runs=tuple(runs)))
+    assert missing == ["cluttered_room"] + ["not_a_shipped_scene"] * (len(runs) - 1)
+    assert not other.any()
+
+
 @pytest.mark.slow
 def test_asa_evaluate_runs_on_recorded_demonstrations(recorded, tmp_path, capsys):
     out = tmp_path / "eval.json"
@@ -359,4 +480,5 @@ def test_asa_evaluate_runs_on_recorded_demonstrations(recorded, tmp_path, capsys
     for key in ("f05", "confusion", "introspection_entropy", "trajectory_rates"):
         assert key in saved
     assert saved["n_runs"] == 4 and saved["folds"] == 2 and saved["seed"] == 0
+    assert saved["passage_normals"] == {"runs": 4, "of": 4} and "kind_time" in saved["acr"]
     assert saved["repeats"]["seeds"] == [0, 1]  # the top level is the first seed's

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from autonomy.evaluation import (
+    CORRESPONDENCE,
     METHODS,
     correspondence_rates,
     entropy_histogram,
@@ -84,12 +85,24 @@ def test_histograms_count_every_test_point_of_every_pair(traced, demos):
         assert set(pairs) == set(result["introspection_pairs"][m])
         assert all(v > 0 for v in pairs.values())
         assert result["introspection_micad"][m] == pytest.approx(np.mean(list(pairs.values())))
+    # the kind-and-time belief: unseen at the same test points, seen at the scored ticks
+    belief = result["kind_time_introspection"]
+    assert belief["unseen"]["histogram"]["n"] == n
+    assert belief["seen"]["histogram"]["n"] == result["n_test_ticks"]
+    for side in ("seen", "unseen"):
+        b = belief[side]
+        assert sum(b["histogram"]["counts"]) == b["histogram"]["n"]
+        for key in ("entropy", "decisive", "no_task"):
+            assert 0.0 <= b[key] <= 1.0
+    assert set(belief["unseen"]["pairs"]) == set(result["introspection_pairs"]["sogp"])
+    text = format_report(result)
+    assert "kind_time: normalised entropy" in text and "unseen" in text
 
 
 def test_acr_is_the_mean_correspondence_rate_of_the_held_out_runs(traced, demos):
     result, _ = traced
     runs = {str(r) for r in np.unique(demos.run)}
-    for m in METHODS:
+    for m in CORRESPONDENCE:
         cr = result["correspondence_rates"][m]
         assert set(cr) == runs  # every run is held out once
         assert all(0.0 <= v <= 1.0 for v in cr.values())
@@ -106,7 +119,7 @@ def _only_candidate(demos, decoy_runs):
     ids = np.where(np.isin(demos.run, decoy_runs), "decoy", demos.target)
     kinds = np.array([KINDS[t] for t in demos.task])
     return SimpleNamespace(
-        **{k: getattr(demos, k) for k in ("q", "s", "u_norm", "run", "task", "target")},
+        **{k: getattr(demos, k) for k in ("q", "s", "u_norm", "run", "task", "target", "phase")},
         cand_offsets=np.arange(n + 1),
         cand_points=demos.s.copy(),
         cand_ids=ids,
@@ -119,7 +132,7 @@ def test_acr_is_one_where_the_target_is_the_only_candidate_and_zero_where_it_is_
     decoy_runs = runs[::3]
     one = _only_candidate(demos, decoy_runs)
     result = evaluate(one, kinds=KINDS, settings=replace(FAST, folds=2, negatives=False))
-    for m in METHODS:
+    for m in CORRESPONDENCE:  # the classifiers' Eq. (5.8) winner and kind_time's belief
         cr = result["correspondence_rates"][m]
         assert all(cr[str(r)] == (0.0 if r in decoy_runs else 1.0) for r in runs)
         assert result["acr"][m] == pytest.approx(1.0 - len(decoy_runs) / len(runs))
@@ -204,3 +217,7 @@ def test_asa_evaluate_prints_progress_on_stderr_and_clean_json(recorded, capsys)
     assert "left" in lines[0]
     for key in ("introspection_histogram", "acr", "micad", "sogp_entropy_rank"):
         assert key in result
+    assert set(result["acr"]) == set(result["micad"]) == set(CORRESPONDENCE)
+    assert "kind_time" in result["trajectory_rates"] and result["kind_time_introspection"]
+    # every run of the shipped scenes gets its passages' normals (the axis cue)
+    assert result["passage_normals"] == {"runs": 4, "of": 4}

@@ -32,12 +32,12 @@ from study.participants import ScriptedParticipant
 from tests.cli_helpers import asa
 
 GOLDEN = Path(__file__).parent / "golden"
-# the columns revisions 0002, 0003 and 0004 add: (table, column)
+# the columns revisions 0002 to 0005 add: (table, column)
 ADDED = {("session", "site"), ("session", "machine"), ("study", "sites")}
 ADDED |= {("participant", "site"), ("session", "uid"), ("order_slot", "site")}
-ADDED |= {("sample", "lsl_clock_s")}
-# the tables revision 0004 adds (not in the version-1 study)
-ADDED_TABLES = {"lsl_stream", "lsl_chunk", "lsl_offset", "lsl_gap"}
+ADDED |= {("sample", "lsl_clock_s"), ("sample", "input_age_ticks"), ("sample", "rtt_ms")}
+# the tables revisions 0004 and 0005 add (not in the version-1 study)
+ADDED_TABLES = {"lsl_stream", "lsl_chunk", "lsl_offset", "lsl_gap", "invite"}
 BACKENDS = ["sqlite", pytest.param("postgresql", marks=pytest.mark.postgres)]
 
 

@@ -527,7 +527,7 @@ def test_asa_replay_without_a_display_is_one_line(tmp_path, monkeypatch, capsys,
     monkeypatch.setattr(rrd, "rerun_executable", lambda: pytest.fail("no viewer without a display"))
     recording = tmp_path / "t.rrd"
     recording.write_bytes(b"")
-    monkeypatch.setattr("study.data.dbtools.find_recording", lambda db, p, t: recording)
+    monkeypatch.setattr("study.data.dbtools.find_recording", lambda db, p, t, **kw: recording)
     code, out, err = asa(capsys, "replay", "--db", "x.db", "--participant", "P01", "--trial", "1")
     line = one_line_error(code, err)
     assert "no display" in line and str(recording) in line and "opened" not in out

@@ -333,3 +333,30 @@ def test_recording_logs_the_camera_image_the_screen_showed(tmp_path, person_fact
     # about 2 Hz over 2 s (from the feed's first image on): the frames came from the
     # screen's feed, none rendered by the loop
     assert 3 <= len(shown) <= 5 and rows == len(shown)
+
+
+def test_laser_hits_beyond_the_map_stay_in_its_rectangle():
+    """A hit far outside the scene (a wall the map does not show) is not drawn over the
+    status line or the camera: the map's drawing is clipped to its rectangle."""
+    from sim.occupancy import build_grid
+    from study.ui.map_view import MapView
+
+    pygame.init()
+    scenario = load_scenario("cluttered_room")
+    surface = pygame.Surface((400, 300))
+    surface.fill(BACKGROUND)
+    view = MapView(pygame.Rect(200, 100, 180, 150))
+    view.set_scene(scenario, build_grid(scenario))
+    inside = view.to_px(np.array([[0.0, 0.0]]))[0]
+    assert view.rect.collidepoint(*inside)  # the scene's origin is drawn in the rectangle
+    far = np.array([[x, y] for x in np.linspace(-60, 60, 41) for y in np.linspace(-60, 60, 41)])
+    view.draw(surface, pygame.font.Font(None, 12), scenario_marks=(), points=far, pose=None,
+              footprint=np.zeros((0, 2)), stick=np.zeros(3))  # fmt: skip
+    image = pygame.surfarray.array3d(surface)  # (w, h, 3)
+    red = np.all(np.abs(image.astype(int) - LASER) <= 10, axis=2)
+    assert red.any()  # some hits fall inside and are drawn
+    outside = red.copy()
+    r = view.rect
+    outside[r.left : r.right, r.top : r.bottom] = False
+    assert not outside.any()
+    assert surface.get_clip() == surface.get_rect()  # the clip is given back

@@ -25,20 +25,22 @@ def evaluate(
     where: str = "demonstrations",
     map_fn: Callable[[Callable[[Any], Any], Iterable[Any]], Iterable[Any]] = map,
     progress: Callable[[int, int], None] | None = None,
+    normals: np.ndarray | None = None,
 ) -> dict[str, Any]:
     """Cross-validated recognition quality on demonstrations (thesis Sec. 7.2.2, 7.3,
     7.4): F0.5, ACR and MICAD by cross-validation by run of the SOGP classifier and three
-    baselines, their introspection entropy (mean, histogram) and MICAD on unseen task
-    types for every training pair of task types, and the trajectory rates of three
-    recognisers.
+    baselines, ACR and MICAD of the kind-and-time recogniser on the fold's SOGP, their
+    introspection entropy (mean, histogram) and MICAD on unseen task types for every
+    training pair of task types (the kind-and-time recogniser's belief entropy on seen
+    and unseen types), and the trajectory rates of five recognisers.
 
     Parameters
     ----------
     demos : Demonstrations-like
         ``q`` (n, 6), ``u_norm`` (n, 3), ``run`` (n,), ``task`` (n,), ``target`` (n,),
-        ``s`` (n, 2), ``cand_offsets`` (n + 1,), ``cand_points`` (m, 2), ``cand_ids``
-        (m,), ``cand_kinds`` (m,): moving ticks, runs contiguous (the fields of
-        ``study.jobs.demonstrations.Demonstrations``).
+        ``s`` (n, 2), ``phase`` (n,) (``"approach"`` or the task's own), ``cand_offsets``
+        (n + 1,), ``cand_points`` (m, 2), ``cand_ids`` (m,), ``cand_kinds`` (m,): moving
+        ticks, runs contiguous (the fields of ``study.jobs.demonstrations.Demonstrations``).
     kinds : mapping of str to str
         Task type -> the component kind it targets (``tasks.contextual.TARGET_KIND``).
     settings : EvaluationSettings, optional
@@ -55,6 +57,10 @@ def evaluate(
     progress : callable, optional
         ``progress(done, total)``, called once per job as ``map_fn`` hands back its
         result: ``done`` = 1, 2, ..., ``total`` (folds + pairs).
+    normals : numpy.ndarray, optional
+        (m, 2) passage normals of the candidates in the robot frame, in ``demos``'
+        candidate order (``study.jobs.demonstrations.candidate_normals``); None: zeros, so
+        the kind-and-time recogniser's axis cue is off.
 
     Returns
     -------
@@ -62,7 +68,8 @@ def evaluate(
         ``f05``, ``sogp_at_least_baselines``, ``confusion``, ``acr``, ``micad``,
         ``correspondence_rates``, ``introspection_entropy``, ``introspection_pairs``,
         ``introspection_histogram``, ``introspection_micad``,
-        ``introspection_micad_pairs``, ``sogp_entropy_rank``, ``negatives``,
+        ``introspection_micad_pairs``, ``sogp_entropy_rank``,
+        ``kind_time_introspection``, ``negatives``,
         ``sogp_length_scale_cap``, ``sogp_claim_threshold``, ``trajectory_rates``,
         ``n_runs``, ``n_test_ticks``, ``folds``, ``seed``, ``model``, ``labels``,
         ``timings_s`` (meanings: :func:`autonomy.evaluation.report.pool_results`).
@@ -80,7 +87,11 @@ def evaluate(
     # them all, as SeedSequence numbers its children in order.
     root = np.random.SeedSequence(settings.seed)
     data = prepare_data(
-        demos, kinds=kinds, settings=settings, fold_rng=np.random.default_rng(root.spawn(1)[0])
+        demos,
+        kinds=kinds,
+        settings=settings,
+        fold_rng=np.random.default_rng(root.spawn(1)[0]),
+        normals=normals,
     )
     n = len(data.labels)
     pairs = list(itertools.combinations(range(n), 2)) if n >= 3 else []

@@ -123,16 +123,22 @@ def hard_negatives(
     return np.sort(np.concatenate(out)) if out else np.zeros(0, dtype=int)
 
 
-def _sorted_candidates(demos: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Candidates of every tick sorted by distance (stable): points, ids, kinds, offsets."""
+def _sorted_candidates(
+    demos: Any, normals: np.ndarray | None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Candidates of every tick sorted by distance (stable): points, ids, kinds, normals
+    (zeros without ``normals``), offsets."""
     off = np.asarray(demos.cand_offsets, dtype=np.int64)
     pts = np.asarray(demos.cand_points, dtype=float)
     ids = np.asarray(demos.cand_ids).astype(str)
     kinds = np.asarray(demos.cand_kinds).astype(str)
+    nrm = np.zeros_like(pts) if normals is None else np.asarray(normals, dtype=float)
+    if nrm.shape != pts.shape:
+        raise ValueError(f"normals: need the candidates' shape {pts.shape}, got {nrm.shape}")
     counts = np.diff(off)
     tick = np.repeat(np.arange(len(counts)), counts)
     order = np.lexsort((np.hypot(pts[:, 0], pts[:, 1]), tick))
-    return pts[order], ids[order], kinds[order], off
+    return pts[order], ids[order], kinds[order], nrm[order], off
 
 
 def check_demonstrations(demos: Any, where: str) -> None:
@@ -161,10 +167,13 @@ class EvaluationData:
     y: np.ndarray  # (n,) task type index
     u_norm: np.ndarray  # (n, 3)
     s: np.ndarray  # (n, 2) demonstrated target point
+    q: np.ndarray  # (n, 6) task features against the demonstrated target
+    executing: np.ndarray  # (n,) bool: the demonstrator executes its task (not approaching)
     fold: np.ndarray  # (n,) fold of every tick
     pts: np.ndarray  # (m, 2) candidate points, sorted by distance within a tick
     ids: np.ndarray  # (m,)
     ckinds: np.ndarray  # (m,)
+    normals: np.ndarray  # (m, 2) passage normals, robot frame (zeros: none known)
     off: np.ndarray  # (n + 1,)
     X_cand: np.ndarray  # (m, 7) encoded candidate features
     X_true: np.ndarray  # (n, 7) encoded demonstrated features
@@ -176,6 +185,7 @@ def prepare_data(
     kinds: Mapping[str, str],
     settings: EvaluationSettings,
     fold_rng: np.random.Generator,
+    normals: np.ndarray | None = None,
 ) -> EvaluationData:
     """The demonstrations as arrays, with every run's fold and the candidates' features.
 
@@ -188,6 +198,9 @@ def prepare_data(
     settings : EvaluationSettings
     fold_rng : numpy.random.Generator
         Draws the folds (:func:`run_folds`).
+    normals : numpy.ndarray, optional
+        (m, 2) passage normals of the candidates (robot frame, ``demos``' candidate
+        order); None: zeros, so the kind-and-time recogniser's axis cue is off.
 
     Raises
     ------
@@ -209,8 +222,9 @@ def prepare_data(
         zip(run_ids.tolist(), run_folds(run_task, settings.folds, fold_rng), strict=True)
     )
     u_norm = np.asarray(demos.u_norm, dtype=float)
-    pts, ids, ckinds, off = _sorted_candidates(demos)
+    pts, ids, ckinds, nrm, off = _sorted_candidates(demos, normals)
     q_cand, _ = candidate_features(pts, off, u_norm)
+    q = np.asarray(demos.q, dtype=float)
     return EvaluationData(
         settings=settings,
         kinds=dict(kinds),
@@ -221,11 +235,14 @@ def prepare_data(
         y=np.array([label_index[t] for t in task]),
         u_norm=u_norm,
         s=np.asarray(demos.s, dtype=float),
+        q=q,
+        executing=np.asarray(demos.phase).astype(str) != "approach",
         fold=np.array([fold_of_run[r] for r in run.tolist()]),
         pts=pts,
         ids=ids,
         ckinds=ckinds,
+        normals=nrm,
         off=off,
         X_cand=encode(q_cand),
-        X_true=encode(np.asarray(demos.q, dtype=float)),
+        X_true=encode(q),
     )

@@ -1,7 +1,10 @@
 """Introspection on unseen task types (thesis Sec. 7.3.2, 7.4.3; Fig. 7.25, Table 7.9):
 every classifier trained on a pair of task types and queried with the way points of the
 others; the normalised entropy (Eq. 7.7) of its label distribution at every such point,
-pooled into histograms, and the MICAD of the clusters it assigns them to."""
+pooled into histograms, and the MICAD of the clusters it assigns them to. The
+kind-and-time recogniser's belief, trained on the pair and replayed along the others'
+runs (:func:`~autonomy.evaluation.kind_time.kind_time_unseen`), beside its belief on
+held-out runs of the task types it was trained on."""
 
 from __future__ import annotations
 
@@ -15,6 +18,7 @@ import numpy as np
 from autonomy.evaluation.classifiers import fit_method
 from autonomy.evaluation.correspondence import intra_cluster_dissimilarity
 from autonomy.evaluation.folds import EvaluationData, way_points_of
+from autonomy.evaluation.kind_time import kind_time_unseen
 from autonomy.evaluation.settings import METHODS, EvaluationSettings
 from autonomy.features import FeatureScaler
 from autonomy.sogp_classifier import normalised_entropy
@@ -30,6 +34,9 @@ class PairResult:
     entropy: dict[str, float]  # method -> mean normalised entropy (7.7) in [0, 1]
     entropies: dict[str, np.ndarray]  # method -> (p,) entropy (7.7) of every test point
     micad: dict[str, float]  # method -> MICAD of the test points [standardised units]
+    kt_entropies: np.ndarray  # (p,) kind_time's belief entropy (7.7) at the test points
+    kt_decisive: np.ndarray  # (p,) bool: kind_time decisive there
+    kt_no_task: np.ndarray  # (p,) kind_time's belief in no task there
     seconds: float
 
 
@@ -38,15 +45,19 @@ def pair_job(
 ) -> PairResult:
     """Introspection of one training pair of task types, timed."""
     t0 = time.perf_counter()
+    rng = np.random.default_rng(seed)
     name, h, micad = introspect_pair(
-        data.X_true, data.y, data.run, data.labels, pair,
-        settings=data.settings, rng=np.random.default_rng(seed),
-    )  # fmt: skip
+        data.X_true, data.y, data.run, data.labels, pair, settings=data.settings, rng=rng
+    )
+    kt_h, kt_decisive, kt_no_task = kind_time_unseen(data, pair, rng.spawn(1)[0])  # last
     return PairResult(
         name=name,
         entropy={m: float(np.mean(v)) for m, v in h.items()},
         entropies=h,
         micad=micad,
+        kt_entropies=kt_h,
+        kt_decisive=kt_decisive,
+        kt_no_task=kt_no_task,
         seconds=time.perf_counter() - t0,
     )
 
@@ -179,3 +190,45 @@ def pool_introspection(per_pair: Sequence[PairResult]) -> dict[str, Any]:
         "introspection_micad_pairs": micad,
         "sogp_entropy_rank": entropy_rank(mean),
     }
+
+
+def _belief_summary(
+    entropies: np.ndarray, decisive: np.ndarray, no_task: np.ndarray
+) -> dict[str, Any]:
+    """Mean normalised entropy, its histogram (:func:`entropy_histogram`), the share of
+    decisive points and the mean belief in no task (None for no point)."""
+    n = len(entropies)
+    return {
+        "entropy": float(np.mean(entropies)) if n else None,
+        "histogram": entropy_histogram(entropies),
+        "decisive": float(np.mean(decisive)) if n else None,
+        "no_task": float(np.mean(no_task)) if n else None,
+    }
+
+
+def kind_time_introspection(
+    seen: tuple[np.ndarray, np.ndarray, np.ndarray], per_pair: Sequence[PairResult]
+) -> dict[str, Any]:
+    """The kind-and-time recogniser's belief (Eq. 7.7 over its hypotheses, the tick's
+    candidates and no task) on task types it was trained on and on unseen ones.
+
+    ``seen``: (entropy, decisive, belief in no task) (t,) at the scored test ticks of the
+    held-out runs, pooled over the folds; ``unseen``: at the test points of every training
+    pair, pooled, with the mean entropy per pair (``pairs``), None without pairs. Each
+    has ``entropy`` (the mean over its points), ``histogram``, ``decisive`` (the share of
+    points where the recogniser would assist) and ``no_task`` (the mean belief in no
+    task).
+    """
+    out: dict[str, Any] = {"seen": _belief_summary(*seen), "unseen": None}
+    if per_pair:
+        unseen = _belief_summary(
+            np.concatenate([p.kt_entropies for p in per_pair]),
+            np.concatenate([p.kt_decisive for p in per_pair]),
+            np.concatenate([p.kt_no_task for p in per_pair]),
+        )
+        unseen["pairs"] = {
+            p.name: float(np.mean(p.kt_entropies)) if len(p.kt_entropies) else None
+            for p in per_pair
+        }
+        out["unseen"] = unseen
+    return out

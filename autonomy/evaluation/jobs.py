@@ -16,8 +16,9 @@ from autonomy.evaluation.classifiers import FittedClassifier, fit_method, most_p
 from autonomy.evaluation.correspondence import correspondence_rates, intra_cluster_dissimilarity
 from autonomy.evaluation.folds import EvaluationData, hard_negatives, way_points_of
 from autonomy.evaluation.introspection import pair_job
+from autonomy.evaluation.kind_time import kind_time_fold
 from autonomy.evaluation.metrics import trajectory_rates
-from autonomy.evaluation.settings import METHODS, RECOGNISERS
+from autonomy.evaluation.settings import KIND_TIME, METHODS, RECOGNISERS
 from autonomy.features import FeatureScaler
 
 Decision = tuple[str, str] | None  # (task type, component id), None: no decision
@@ -31,13 +32,18 @@ class FoldResult:
     truth: list[str]  # (t,) true task type of every scored test tick
     pred: dict[str, list[str | None]]  # method -> (t,) predicted type, None: no prediction
     ok: dict[str, list[bool]]  # method -> (t,) whether the predicted target is right
-    cr: dict[str, dict[str, float]]  # method -> held-out run -> correspondence rate
-    icad: dict[str, np.ndarray]  # method -> (t,) ICAD of every test tick [standardised]
+    # CORRESPONDENCE (the methods and kind_time) -> held-out run -> correspondence rate
+    cr: dict[str, dict[str, float]]
+    icad: dict[str, np.ndarray]  # the same keys -> (t,) ICAD of the test ticks [standardised]
     cap: float  # the SOGP's length-scale cap [standard deviations]
     claim: dict[str, float]  # task type -> the SOGP's claim threshold
     rates: dict[str, list[dict[str, float]]]  # recogniser -> per held-out run's rates
+    kt_entropy: np.ndarray  # (t,) kind_time's belief entropy (7.7) at the scored test ticks
+    kt_decisive: np.ndarray  # (t,) bool: kind_time decisive there
+    kt_no_task: np.ndarray  # (t,) kind_time's belief in no task there
     t_cls: float  # classification [s]
-    t_rec: float  # trajectory rates [s]
+    t_rec: float  # trajectory rates of the other recognisers [s]
+    t_kt: float  # the kind-and-time recogniser: prior, replay, its rates and ACR [s]
 
 
 @dataclass(frozen=True, slots=True)
@@ -97,6 +103,9 @@ def fold_job(data: EvaluationData, k: int, seed: np.random.SeedSequence) -> Fold
     sogp = fitted["sogp"]
     t1 = time.perf_counter()
     rates = _fold_rates(data, k, sogp, train.Z_cand, user_rng)
+    t2 = time.perf_counter()
+    kt = kind_time_fold(data, k, sogp, train.Z_cand, train.Z, train.y)
+    cr[KIND_TIME], icad[KIND_TIME], rates[KIND_TIME] = kt.cr, kt.icad, kt.rates
     return FoldResult(
         truth=data.task[ticks].tolist(),
         pred=pred,
@@ -107,9 +116,13 @@ def fold_job(data: EvaluationData, k: int, seed: np.random.SeedSequence) -> Fold
         claim={
             data.labels[int(c)]: float(t) for c, t in zip(sogp.classes, sogp.claim, strict=True)
         },
-        rates=rates,
+        rates={r: rates[r] for r in RECOGNISERS},
+        kt_entropy=kt.entropy,
+        kt_decisive=kt.decisive,
+        kt_no_task=kt.no_task,
         t_cls=t1 - t0,
-        t_rec=time.perf_counter() - t1,
+        t_rec=t2 - t1,
+        t_kt=time.perf_counter() - t2,
     )
 
 
@@ -175,7 +188,8 @@ def _fold_rates(
 ) -> dict[str, list[dict[str, float]]]:
     """Trajectory rates (Sec. 7.2.2) of the SOGP recogniser, the Bayes filter (Ch. 4)
     and the exponential baseline in both forms (Eqs. 7.5, 7.4; scales and threshold tuned
-    on the training fold's runs) on every tick of fold ``k``'s runs."""
+    on the training fold's runs) on every tick of fold ``k``'s runs (the kind-and-time
+    recogniser's: :func:`~autonomy.evaluation.kind_time.kind_time_fold`)."""
     labels, run, task, target = data.labels, data.run, data.task, data.target
     train_ticks = np.flatnonzero(data.fold != k)  # every tick: the user models need points
     feats = {
@@ -194,7 +208,7 @@ def _fold_rates(
         rec: ExponentialBaseline(kinds, settings=tune_exponential(training, kinds=kinds, form=form))
         for rec, form in (("baseline", "psi"), ("baseline_theta", "theta"))
     }
-    rates: dict[str, list[dict[str, float]]] = {r: [] for r in RECOGNISERS}
+    rates: dict[str, list[dict[str, float]]] = {r: [] for r in RECOGNISERS if r != KIND_TIME}
     for r in np.unique(run[data.fold == k]):
         ticks_r = np.flatnonzero(run == r)
         truth_r = [(task[i], target[i]) for i in ticks_r]

@@ -9,10 +9,21 @@ from typing import Any
 
 import numpy as np
 
-from autonomy.evaluation.introspection import PairResult, entropy_rank, pool_introspection
+from autonomy.evaluation.introspection import (
+    PairResult,
+    entropy_rank,
+    kind_time_introspection,
+    pool_introspection,
+)
 from autonomy.evaluation.jobs import FoldResult
 from autonomy.evaluation.metrics import confusion_with_targets, f05_with_targets
-from autonomy.evaluation.settings import METHODS, RECOGNISERS, WRONG_TARGET, EvaluationSettings
+from autonomy.evaluation.settings import (
+    CORRESPONDENCE,
+    METHODS,
+    RECOGNISERS,
+    WRONG_TARGET,
+    EvaluationSettings,
+)
 
 
 def pool_results(
@@ -29,21 +40,23 @@ def pool_results(
     ``total_s`` is the wall clock [s].
 
     Its keys: ``f05`` (classifier -> task type or "macro" -> F0.5 with the right
-    target, Table 7.6); ``confusion``; ``acr`` (classifier -> mean over held-out runs of
-    the correspondence rate, Sec. 7.4.1), ``correspondence_rates`` (classifier -> run ->
-    CR), ``micad`` (classifier -> mean ICAD over test ticks, standardised feature units);
-    the introspection on unseen task types (:func:`~autonomy.evaluation.introspection.
-    pool_introspection`): ``introspection_entropy``, ``introspection_pairs``,
-    ``introspection_histogram``, ``introspection_micad``, ``introspection_micad_pairs``,
-    ``sogp_entropy_rank``; ``trajectory_rates`` (recogniser -> success, error, null);
-    the settings and sizes; ``timings_s``.
+    target, Table 7.6); ``confusion``; ``acr`` (classifier or ``kind_time`` -> mean over
+    held-out runs of the correspondence rate, Sec. 7.4.1), ``correspondence_rates`` (the
+    same keys -> run -> CR), ``micad`` (the same keys -> mean ICAD over test ticks,
+    standardised feature units); the introspection on unseen task types
+    (:func:`~autonomy.evaluation.introspection.pool_introspection`):
+    ``introspection_entropy``, ``introspection_pairs``, ``introspection_histogram``,
+    ``introspection_micad``, ``introspection_micad_pairs``, ``sogp_entropy_rank``, and the
+    kind-and-time recogniser's (:func:`~autonomy.evaluation.introspection.
+    kind_time_introspection`): ``kind_time_introspection``; ``trajectory_rates``
+    (recogniser -> success, error, null); the settings and sizes; ``timings_s``.
     """
     truth = [t for r in per_fold for t in r.truth]
     pred = {m: [p for r in per_fold for p in r.pred[m]] for m in METHODS}
     ok = {m: [x for r in per_fold for x in r.ok[m]] for m in METHODS}
     f05 = {m: f05_with_targets(truth, pred[m], ok[m], labels) for m in METHODS}
-    cr = {m: {run: v for r in per_fold for run, v in r.cr[m].items()} for m in METHODS}
-    icad = {m: np.concatenate([r.icad[m] for r in per_fold]) for m in METHODS}
+    cr = {m: {run: v for r in per_fold for run, v in r.cr[m].items()} for m in CORRESPONDENCE}
+    icad = {m: np.concatenate([r.icad[m] for r in per_fold]) for m in CORRESPONDENCE}
     return {
         "f05": f05,
         "sogp_at_least_baselines": {
@@ -57,10 +70,18 @@ def pool_results(
             }
             for m in METHODS
         },
-        "acr": {m: float(np.mean(list(cr[m].values()))) for m in METHODS},  # Sec. 7.4.1
-        "micad": {m: float(np.mean(icad[m])) if len(icad[m]) else None for m in METHODS},
+        "acr": {m: float(np.mean(list(cr[m].values()))) for m in CORRESPONDENCE},  # 7.4.1
+        "micad": {m: float(np.mean(icad[m])) if len(icad[m]) else None for m in CORRESPONDENCE},
         "correspondence_rates": cr,
         **pool_introspection(per_pair),
+        "kind_time_introspection": kind_time_introspection(
+            (
+                np.concatenate([r.kt_entropy for r in per_fold]),
+                np.concatenate([r.kt_decisive for r in per_fold]),
+                np.concatenate([r.kt_no_task for r in per_fold]),
+            ),
+            per_pair,
+        ),
         "negatives": bool(settings.negatives),
         "sogp_length_scale_cap": [r.cap for r in per_fold],
         "sogp_claim_threshold": [r.claim for r in per_fold],
@@ -74,6 +95,7 @@ def pool_results(
         "timings_s": {  # seconds inside the jobs, summed (CPU-like), and the wall clock
             "classification": round(sum(r.t_cls for r in per_fold), 2),
             "trajectory_rates": round(sum(r.t_rec for r in per_fold), 2),
+            "kind_time": round(sum(r.t_kt for r in per_fold), 2),  # its introspection: below
             "introspection": round(sum(p.seconds for p in per_pair), 2),
             "total": round(total_s, 2),
         },
@@ -90,6 +112,9 @@ def _mean_rates(per_fold: Sequence[FoldResult]) -> dict[str, dict[str, float]]:
         }
         for r, rates in rec_rates.items()
     }
+
+
+SIDES = ("seen", "unseen")  # the kind-and-time belief on trained and on unseen task types
 
 
 def _spread(values: Sequence[float]) -> float:
@@ -131,9 +156,11 @@ def summarise_repeats(results: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
         which the SOGP's F0.5 is at least every baseline's}; ``acr_mean``, ``acr_sd``,
         ``micad_mean``, ``micad_sd``, ``introspection_entropy_mean``,
         ``introspection_entropy_sd``, ``introspection_micad_mean``,
-        ``introspection_micad_sd`` -> {classifier -> value}; ``sogp_entropy_rank``: the
-        SOGP's rank by the mean entropy over the seeds (1 the highest);
-        ``trajectory_rates_mean`` -> {recogniser -> {success, error, null}}.
+        ``introspection_micad_sd`` -> {classifier -> value} (``acr`` and ``micad`` also
+        ``kind_time``); ``sogp_entropy_rank``: the SOGP's rank by the mean entropy over the
+        seeds (1 the highest); ``kind_time_entropy_mean``, ``kind_time_entropy_sd`` ->
+        {"seen", "unseen" -> the kind-and-time belief's mean entropy}; ``trajectory_rates_mean``
+        -> {recogniser -> {success, error, null}}.
     """
     if not results:
         raise ValueError("results: need at least one evaluation result")
@@ -150,6 +177,13 @@ def summarise_repeats(results: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
     for key in ("acr", "micad", "introspection_entropy", "introspection_micad"):
         out[f"{key}_mean"], out[f"{key}_sd"] = _mean_sd(results, key)
     out["sogp_entropy_rank"] = entropy_rank(out["introspection_entropy_mean"])
+    belief = [
+        {side: (r["kind_time_introspection"][side] or {}).get("entropy") for side in SIDES}
+        for r in results
+    ]
+    out["kind_time_entropy_mean"], out["kind_time_entropy_sd"] = _mean_sd(
+        [{"entropy": b} for b in belief], "entropy"
+    )
     out["trajectory_rates_mean"] = {
         rec: {
             k: float(np.mean([r["trajectory_rates"][rec][k] for r in results]))

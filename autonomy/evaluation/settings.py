@@ -3,15 +3,22 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
+from autonomy.contextual import ContextualSettings
+from autonomy.kind_time import KindTimeSettings
 from autonomy.training import TrainSettings
 
 _SHIPPED = TrainSettings()  # the SOGP is evaluated as `asa train` builds it
+_MODE = ContextualSettings()  # the kind-and-time recogniser as the contextual mode runs it
 
 METHODS: tuple[str, ...] = ("sogp", "svm", "knn", "rf")
+KIND_TIME = "kind_time"  # the kind-and-time recogniser (autonomy.kind_time) on the SOGP
+# ACR and MICAD (Sec. 7.4.1): the classifiers' Eq. (5.8) winner and the kind-and-time
+# recogniser's most believed candidate
+CORRESPONDENCE: tuple[str, ...] = (*METHODS, KIND_TIME)
 # "baseline": Eq. (7.5), the psi form; "baseline_theta": Eq. (7.4), both tuned per fold
-RECOGNISERS: tuple[str, ...] = ("sogp", "bayes_filter", "baseline", "baseline_theta")
+RECOGNISERS: tuple[str, ...] = ("sogp", KIND_TIME, "bayes_filter", "baseline", "baseline_theta")
 WRONG_TARGET = "wrong_target"
 
 
@@ -35,6 +42,8 @@ class EvaluationSettings:
     sogp_claim_grid: tuple[float, ...] = (0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6)  # per class
     sogp_inner_folds: int = 2
     sogp_refine: bool = _SHIPPED.refine  # re-estimate each GP on its basis after the pass
+    kind_time: KindTimeSettings = field(default_factory=lambda: _MODE.kind_time)
+    min_input: float = _MODE.min_input  # |u_xy| (normalised) below: a tick without input
 
     def __post_init__(self) -> None:
         for name in (

@@ -35,6 +35,7 @@ GROUPS: dict[str, str] = {
     "calibrate": "study.bench.calibrate",
     "push": "study.bench.push",
     "lsl": "study.bench.lsl",
+    "web": "study.bench.web",
 }
 
 

@@ -76,6 +76,9 @@ BUDGETS: tuple[Budget, ...] = (
     Budget("storage", "storage_sqlite_concurrent_sessions", ">=", 8),
     # the lab's clock (issue 38): a marker on loopback, the lab's streams recorded beside a
     # 20 Hz session without loss (4 x 500 Hz x 8 channels: 2,000 samples/s), its ticks
+    Budget("web", "web_rtt_ms.p99", "<", 50.0),
+    Budget("web", "web_sessions_sustained", ">=", 4),
+    Budget("web", "web_browser_fps", ">=", 30.0),
     Budget("lsl", "lsl_marker_latency_ms.p99", "<", 5.0),
     Budget("lsl", "lsl_lost_samples", "<=", 0),
     Budget("lsl", "lsl_recorded_samples_per_s", ">=", 1980.0),

@@ -70,6 +70,15 @@ COMMANDS: dict[str, tuple[str, str]] = {
     ),
     "replay": ("study.cli.replay:replay", "Open a trial's rerun recording, or --print it."),
     "run": ("study.cli.run:run", "One participant's session: a person, scripted or synthetic."),
+    "serve": (
+        "study.cli.serve:serve",
+        "Run the protocol's sessions for participants who join from a browser link.",
+    ),
+    "invite": ("study.cli.serve:invite", "Make browser links for participants of `asa serve`."),
+    "snapshots": (
+        "study.cli.serve:snapshots",
+        "Screenshots of every screen of a protocol in headless Chromium.",
+    ),
     "db": (
         "study.cli.db:db",
         "Study database tools: check, diff, upgrade, push a site's database.",

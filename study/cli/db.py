@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import sys
+from pathlib import Path
 
 import click
 
@@ -22,7 +23,14 @@ def db() -> None:
 @db_option("Study database: a SQLite file or a SQLAlchemy URL (opened read-only).", name="path")
 @click.option("--json", "as_json", is_flag=True, help="One JSON object on stdout.")
 @click.option("--no-verify", is_flag=True, help="Skip `rerun rrd verify` on the recordings.")
-def check_command(path: str, as_json: bool, no_verify: bool) -> None:
+@click.option(
+    "--recordings",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=None,
+    help="The folder the sessions wrote their recordings to (as `asa run --recordings`) "
+    "[default: the paths stored, from the database's folder].",
+)
+def check_command(path: str, as_json: bool, no_verify: bool, recordings: Path | None) -> None:
     """Check a study database: every completed trial has its samples (~20 per simulated
     second), its events, its outcome, its recording (verified with rerun) and, for main
     trials, its questionnaire; no orphan rows; no trial left running outside a running
@@ -35,7 +43,7 @@ def check_command(path: str, as_json: bool, no_verify: bool) -> None:
     """
     from study.data.dbtools import check
 
-    report = check(path, verify_recordings=not no_verify)
+    report = check(path, verify_recordings=not no_verify, recordings=recordings)
     if as_json:
         click.echo(json.dumps(report.as_dict(), indent=2))
     else:

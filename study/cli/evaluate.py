@@ -118,7 +118,7 @@ def evaluate_command(
     out: Path | None,
 ) -> None:
     """Cross-validated F0.5, ACR and MICAD, introspection (entropy histograms) and
-    trajectory rates of the recognisers."""
+    trajectory rates of the recognisers, the kind-and-time recogniser beside the SOGP."""
     if out is not None and out.is_dir():
         raise ValueError(f"{out}: --out must be a file path (e.g. evaluation.json)")
     workers = (os.cpu_count() or 1) if workers is None else workers

@@ -183,8 +183,8 @@ def _interest(values: tuple[str, ...]) -> dict[str, float]:
     "--population",
     type=click.Path(dir_okay=False, path_type=Path),
     default=None,
-    help="With --protocol: a population file (TOML, e.g. from asa calibrate); default the "
-    "platform's model.",
+    help="With --protocol: a population file (TOML, a [population] table of the model's "
+    "fields); default the platform's model.",
 )
 @click.option(
     "--posthoc-gate",

@@ -4,6 +4,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import click
 
 from study.cli import ROW_ID, db_option
@@ -26,7 +28,15 @@ from study.cli import ROW_ID, db_option
     help="Print what the recording holds (entities, rows, time range, camera frames) "
     "instead of opening the viewer.",
 )
-def replay(db: str, participant: str, trial: int, print_only: bool) -> None:
+@click.option(
+    "--recordings",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=None,
+    help="The folder the sessions wrote their recordings to [default: the stored paths].",
+)
+def replay(
+    db: str, participant: str, trial: int, print_only: bool, recordings: Path | None
+) -> None:
     """Open the rerun viewer on one trial's recording (rerun's analytics switched off;
     its server listens on localhost only). A viewer that cannot start (no display) is
     reported with one line and exit status 2.
@@ -37,7 +47,7 @@ def replay(db: str, participant: str, trial: int, print_only: bool) -> None:
     from study.data.dbtools import find_recording
     from study.data.rrd import format_summary, open_viewer, recording_summary
 
-    path = find_recording(db, participant, trial)
+    path = find_recording(db, participant, trial, recordings=recordings)
     if print_only:
         click.echo(format_summary(recording_summary(path)))
         return

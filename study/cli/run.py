@@ -96,6 +96,13 @@ SCREEN_STATUS_EVERY_S = 1.0  # [s] wall time between the screen's status lines
     "pip install -e '.[lsl]'.",
 )
 @click.option(
+    "--recordings",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=None,
+    help="Folder of the trials' recordings [default: <database name>_recordings beside the "
+    "database].",
+)
+@click.option(
     "--machine",
     default=None,
     help="The machine's name recorded with the session [default: $ASA_MACHINE, else the host "
@@ -115,6 +122,7 @@ def run(
     site: str | None,
     machine: str | None,
     lsl: bool,
+    recordings: Path | None,
 ) -> None:
     """Run one participant through every phase of a protocol and store it in --db.
 
@@ -156,7 +164,7 @@ def run(
             headless=headless, snapshots=snapshots, fast=fast, progress=terminal.line,
             status=terminal.status, on_tick=terminal.on_tick,
             status_every_s=SCREEN_STATUS_EVERY_S, place=Place.given(site, machine),
-            lsl=True if lsl else None,
+            lsl=True if lsl else None, recordings=recordings,
         )  # fmt: skip
     except BaseException as error:
         terminal.close()

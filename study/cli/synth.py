@@ -65,7 +65,8 @@ from study.cli import PARTICIPANTS, SEED, WORKERS, db_option, flag_errors
     "--population",
     type=click.Path(dir_okay=False, path_type=Path),
     default=None,
-    help="A population file (TOML, e.g. from asa calibrate); default the platform's model.",
+    help="A population file (TOML, a [population] table of the model's fields); default "
+    "the platform's model.",
 )
 def synth(
     protocol: str,

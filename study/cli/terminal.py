@@ -13,11 +13,10 @@ from __future__ import annotations
 import math
 import shlex
 import shutil
+import sys
 import time
 from collections.abc import Callable, Sequence
 from typing import Any, TextIO
-
-import click
 
 from study.engine.clocks import DT
 from study.engine.resume import SessionState
@@ -56,7 +55,7 @@ class ExperimenterTerminal:
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
         self.code = code
-        self.stream = stream if stream is not None else click.get_text_stream("stdout")
+        self.stream = stream if stream is not None else sys.stdout
         self.tty = bool(tty if tty is not None else self.stream.isatty())
         self.screen = screen
         self.clock = clock

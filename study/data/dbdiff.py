@@ -42,6 +42,8 @@ WALL_CLOCK_COLUMNS = frozenset(
         "uid",
         "lsl_clock_s",
         "received_clock_s",
+        "input_age_ticks",
+        "rtt_ms",
     }
 )
 MAX_SHOWN = 5  # differing rows shown per table

@@ -61,6 +61,7 @@ class CheckReport:
     database: str
     problems: tuple[str, ...]
     counts: dict[str, int] = field(default_factory=dict)  # rows per table, checked trials
+    recordings: str = ""  # where the recordings were looked for
 
     @property
     def clean(self) -> bool:
@@ -72,12 +73,15 @@ class CheckReport:
             "clean": self.clean,
             "problems": list(self.problems),
             "counts": dict(self.counts),
+            "recordings": self.recordings,
         }
 
     def text(self) -> str:
         lines = [
             f"{self.database}: " + ("clean" if self.clean else f"{len(self.problems)} problems")
         ]
+        if self.recordings:
+            lines.append(f"recordings: looked in {self.recordings}")
         lines.append("  " + ", ".join(f"{k} {v}" for k, v in self.counts.items()))
         lines += [f"  - {p}" for p in self.problems]
         return "\n".join(lines)
@@ -123,8 +127,14 @@ def _orphans(s: Session, problems: list[str]) -> None:
     missing(SessionRow, SessionRow.participant_id, Participant, "session")
 
 
-def check(db: str | Path, *, verify_recordings: bool = True) -> CheckReport:
+def check(
+    db: str | Path, *, verify_recordings: bool = True, recordings: str | Path | None = None
+) -> CheckReport:
     """Integrity and consistency of a study database (see the module docstring).
+
+    ``recordings``: the folder the recordings were written to (``--recordings``), where
+    each trial's file is looked for as ``<code>/<file name>``; default: its stored path,
+    relative to the database's folder.
 
     Raises
     ------
@@ -138,6 +148,7 @@ def check(db: str | Path, *, verify_recordings: bool = True) -> CheckReport:
     to_verify: list[tuple[Path, str]] = []  # recordings, checked together at the end
     counts: dict[str, int] = {}
     folder = database_file(db).parent
+    looked = Path(recordings) if recordings is not None else folder
     try:
         present = set(inspect(engine).get_table_names())
         with Session(engine) as s:
@@ -145,7 +156,7 @@ def check(db: str | Path, *, verify_recordings: bool = True) -> CheckReport:
             study = get_study(s)
             if study is None:
                 problems.append("study: no study row (an empty database)")
-                return CheckReport(str(db), tuple(problems), counts)
+                return CheckReport(str(db), tuple(problems), counts, str(looked.resolve()))
             protocol = _stored_protocol(study.protocol_text)
             after = _after_trial(protocol)
             _orphans(s, problems)
@@ -170,7 +181,8 @@ def check(db: str | Path, *, verify_recordings: bool = True) -> CheckReport:
                     main_trials.setdefault(trial.session_id, []).append(trial)
                 _check_samples(trial, stats.get(trial.id, (0, None, None, None)), where, problems)
                 _check_completed(trial, kinds.get(trial.id, set()), where, problems)
-                _check_recording(trial, folder, verify_recordings, problems, where, to_verify)
+                path = recording_file(trial.recording_path, folder, recordings)
+                _check_recording(trial, path, verify_recordings, problems, where, to_verify)
             if after is not None and after[0]:
                 _check_questionnaires(s, main_trials, sessions, after[1], problems)
             counts["live_sessions"] = check_people(s, db, protocol, problems)
@@ -185,7 +197,17 @@ def check(db: str | Path, *, verify_recordings: bool = True) -> CheckReport:
         for path, where in to_verify:
             if path in failures:
                 problems.append(f"{where}: {failures[path]}")
-    return CheckReport(str(db), tuple(problems), counts)
+    return CheckReport(str(db), tuple(problems), counts, str(looked.resolve()))
+
+
+def recording_file(stored: str, folder: Path, recordings: str | Path | None = None) -> Path:
+    """Where a trial's recording is: its stored path against the database's ``folder``,
+    or with ``recordings`` given, ``<recordings>/<code>/<file name>`` (the layout every
+    session writes, so a recordings folder copied elsewhere is found)."""
+    path = Path(stored)
+    if recordings is not None:
+        return Path(recordings) / path.parent.name / path.name
+    return path if path.is_absolute() else folder / path
 
 
 def _table_counts(s: Session, present: set[str]) -> dict[str, int]:
@@ -296,7 +318,7 @@ def _check_questionnaires(
 
 def _check_recording(
     trial: Trial,
-    folder: Path,
+    path: Path,
     verify_recordings: bool,
     problems: list[str],
     where: str,
@@ -304,10 +326,8 @@ def _check_recording(
 ) -> None:
     if not trial.recording_path:  # run without recordings (asa synth --no-recordings)
         return
-    path = Path(trial.recording_path)
-    path = path if path.is_absolute() else folder / path
     if not path.is_file():
-        problems.append(f"{where}: recording {trial.recording_path} is missing")
+        problems.append(f"{where}: recording {trial.recording_path} is missing (looked at {path})")
         return
     if verify_recordings:
         to_verify.append((path, where))
@@ -316,8 +336,11 @@ def _check_recording(
 # ------------------------------------------------------------------------- replay
 
 
-def find_recording(db: str | Path, participant: str, trial: int) -> Path:
-    """The ``.rrd`` file of trial ``trial`` (row id) of participant ``participant``.
+def find_recording(
+    db: str | Path, participant: str, trial: int, *, recordings: str | Path | None = None
+) -> Path:
+    """The ``.rrd`` file of trial ``trial`` (row id) of participant ``participant``
+    (``recordings``: the recordings' folder, as :func:`check`).
 
     Raises
     ------
@@ -360,11 +383,9 @@ def find_recording(db: str | Path, participant: str, trial: int) -> Path:
         raise ValueError(
             f"{db}: field 'trial.recording_path': trial {trial} of {participant} has no recording"
         )
-    path = Path(stored)
-    if not path.is_absolute():
-        url = database_url(db)
-        base = Path(url[len("sqlite:///") :]).parent if url.startswith("sqlite:///") else Path()
-        path = base / path
+    url = database_url(db)
+    base = Path(url[len("sqlite:///") :]).parent if url.startswith("sqlite:///") else Path()
+    path = recording_file(stored, base, recordings)
     if not path.is_file():
         raise ValueError(
             f"{db}: field 'trial.recording_path': the recording of trial {trial} of "
@@ -425,9 +446,13 @@ def _cell(value: Any, is_json: bool) -> str:
     return str(value)
 
 
+# the server's bookkeeping, not study data: the invites' token hashes (issue 37)
+NOT_EXPORTED = frozenset({"invite"})
+
+
 def export(db: str | Path, out: str | Path, *, force: bool = False) -> dict[str, int]:
     """Write one CSV per table of the study database into folder ``out`` (the database is
-    opened read-only).
+    opened read-only; not the tables of :data:`NOT_EXPORTED`).
 
     Returns
     -------
@@ -445,7 +470,11 @@ def export(db: str | Path, out: str | Path, *, force: bool = False) -> dict[str,
     folder = Path(out)
     if folder.exists() and not folder.is_dir():
         raise ValueError(f"out: {out} must be a folder, and this is a file")
-    targets = [folder / f"{table.name}.csv" for table in Base.metadata.sorted_tables]
+    targets = [
+        folder / f"{table.name}.csv"
+        for table in Base.metadata.sorted_tables
+        if table.name not in NOT_EXPORTED
+    ]
     refuse_existing(targets, force=force)
     engine = open_database(db, create=False)
     folder.mkdir(parents=True, exist_ok=True)
@@ -454,7 +483,7 @@ def export(db: str | Path, out: str | Path, *, force: bool = False) -> dict[str,
         present = set(inspect(engine).get_table_names())
         with engine.connect() as conn:
             for table in Base.metadata.sorted_tables:
-                if table.name not in present:
+                if table.name not in present or table.name in NOT_EXPORTED:
                     continue  # order_slot in a database made before issue 20
                 if table.name.startswith("lsl_") and not _has_rows(conn, table):
                     continue  # the lab's streams: only in a study that recorded some

@@ -26,7 +26,7 @@ MIGRATIONS = Path(__file__).with_name("migrations")
 # the revisions in migrations/versions, oldest first (a test checks them against Alembic's
 # script directory): every opening reads them, and importing Alembic takes longer than
 # opening a study, so Alembic is imported only to stamp a new database or to upgrade one
-REVISIONS = ("0001", "0002", "0003", "0004")
+REVISIONS = ("0001", "0002", "0003", "0004", "0005")
 LEGACY_REVISION = "0001"  # a database with meta.schema_version 1 and no alembic_version
 
 

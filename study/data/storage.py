@@ -60,7 +60,7 @@ from study.data.schema import check_revision, stamp_head
 
 # kept equal to the Alembic head's number in meta.schema_version, which older platform
 # versions and dbfile.probe read (study.data.schema; docs/decisions.md)
-SCHEMA_VERSION = 4
+SCHEMA_VERSION = 5
 # the advisory lock key of a study database's write lock on PostgreSQL (one study per
 # database, so one key: "asastudy" in ASCII as a bigint; study.data.ledger.lock_study)
 PG_STUDY_LOCK = int.from_bytes(b"asastudy", "big") & 0x7FFF_FFFF_FFFF_FFFF
@@ -240,6 +240,11 @@ class Sample(Base):
     # [s] the session machine's LSL local_clock() when the tick happened (revision 0004;
     # None without LSL)
     lsl_clock_s: Mapped[float | None] = mapped_column(Float)
+    # a browser participant's input (revision 0005; None for others): how many ticks
+    # before this one the page had drawn the state it answered, and that state's round
+    # trip [ms] (study.web; docs/decisions.md)
+    input_age_ticks: Mapped[int | None] = mapped_column(Integer)
+    rtt_ms: Mapped[float | None] = mapped_column(Float)
 
 
 class Event(Base):
@@ -588,3 +593,6 @@ def get_study(session: Session) -> Study | None:
 
 # the lab's streams (revision 0004): defined beside, mapped on the same metadata
 from study.data.lsl_tables import LslChunk, LslGap, LslOffset, LslStream  # noqa: E402, F401
+
+# invitations of browser participants (revision 0005)
+from study.data.web_tables import Invite  # noqa: E402, F401

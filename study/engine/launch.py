@@ -51,6 +51,7 @@ def run_participant(
     status_every_s: float = 5.0,
     place: Place | None = None,
     lsl: bool | None = None,
+    recordings: Path | None = None,
 ) -> SessionSummary:
     """Run (or resume) participant ``code``'s session of ``protocol`` in ``db``.
 
@@ -86,6 +87,8 @@ def run_participant(
     lsl : bool, optional
         True: the LSL outlets even without the protocol's ``[lsl]`` (``--lsl``); None: as
         the protocol says (:func:`study.engine.session.run_session`).
+    recordings : Path, optional
+        Folder of the recordings (``--recordings``); default beside the database.
 
     Returns
     -------
@@ -103,11 +106,13 @@ def run_participant(
             return run_session(
                 p, code, db, participant=participant, seed=seed, resume=resume, force=force,
                 progress=progress, control=control, on_tick=on_tick, place=place, lsl=lsl,
+                recordings=recordings,
             )  # fmt: skip
         return _on_screen(
             p, code, db, input_kind, seed, resume=resume, force=force, headless=headless,
             snapshots=snapshots, fast=fast, progress=progress, status=status, on_tick=on_tick,
             control=control, status_every_s=status_every_s, place=place, lsl=lsl,
+            recordings=recordings,
         )  # fmt: skip
 
 
@@ -130,6 +135,7 @@ def _on_screen(
     status_every_s: float,
     place: Place | None,
     lsl: bool | None,
+    recordings: Path | None,
 ) -> SessionSummary:
     """The session on the participant's screen (the camera image it shows is recorded)."""
     if headless:
@@ -162,6 +168,7 @@ def _on_screen(
             on_tick=on_tick,
             place=place,
             lsl=lsl,
+            recordings=recordings,
         )
     finally:
         person.close()

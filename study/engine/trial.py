@@ -346,6 +346,8 @@ class TrialLoop:
             true_task=task,
             true_target=target,
             lsl_clock_s=stamp,
+            input_age_ticks=inp.age_ticks,
+            rtt_ms=inp.rtt_ms,
         )
         self.writer.samples.append(record.row(self.trial_id))
         if lsl is not None:

@@ -151,7 +151,10 @@ def run_evaluation(
     repeats (``total`` = repeats x jobs per evaluation). ``warn(line)`` is told when the
     model's own demonstrations, recorded again from its recipe (:func:`model_recipe`),
     hash differently than the model says (another CPU); the result's
-    ``"demonstrations"`` names both hashes.
+    ``"demonstrations"`` names both hashes. The candidates' passage normals, which the
+    kind-and-time recogniser reads and the recorder does not store, come from the runs'
+    scenes (:func:`study.jobs.demonstrations.candidate_normals`); ``warn`` is told of
+    runs left without them, and the result's ``"passage_normals"`` counts them.
 
     Raises
     ------
@@ -160,7 +163,7 @@ def run_evaluation(
         outside [2, number of runs], ``workers`` outside 1..1024 or ``repeats`` outside
         1..1000 (checked first, before any demonstrations are recorded).
     """
-    from study.jobs.demonstrations import load_demonstrations
+    from study.jobs.demonstrations import candidate_normals, load_demonstrations
     from tasks.contextual import TARGET_KIND
 
     if not 1 <= workers <= 1024:
@@ -176,6 +179,13 @@ def run_evaluation(
     else:
         provenance = {"folder": str(demonstrations)}
     demos = load_demonstrations(demonstrations)
+    normals, missing = candidate_normals(demos)
+    if missing and warn is not None:
+        warn(
+            f"{demonstrations}: {len(missing)} of {len(demos.runs)} runs are in scenes that are "
+            f"not shipped ({', '.join(sorted(set(missing)))}): no passage normals there, the "
+            "kind-and-time recogniser's axis cue is off on them"
+        )
     with contextlib.ExitStack() as stack:
         map_fn: Any = map
         if workers > 1:
@@ -193,11 +203,13 @@ def run_evaluation(
                 where=str(demonstrations),
                 map_fn=map_fn,
                 progress=None if progress is None else _across_repeats(progress, i, repeats),
+                normals=normals,
             )
             for i in range(repeats)
         ]
     result = results[0]
     result["demonstrations"] = provenance
+    result["passage_normals"] = {"runs": len(demos.runs) - len(missing), "of": len(demos.runs)}
     if repeats > 1:
         result["repeats"] = summarise_repeats(results)
     return result

@@ -31,13 +31,12 @@ from typing import Any
 import numpy as np
 import pygame
 
-from questionnaires import nasa_tlx
 from sim.occupancy import OccupancyGrid, build_grid
 from sim.types import Observation
 from study.engine.protocol import InputSettings, UiSettings
-from study.engine.texts import fill, first_sentence, trial_title, trial_values
 from study.participants.base import ParticipantBase
 from study.types import ParticipantInput, ScreenState, TrialInfo
+from study.ui import describe
 from study.ui import legend as legends
 from study.ui.camera import CameraFeed
 from study.ui.clock import UiClock
@@ -46,10 +45,7 @@ from study.ui.forms import FormState
 from study.ui.input import DIGIT_KEYS, GamepadMapping, InputState, NavRepeat
 from study.ui.screen import CONFIRM_S, Screen, TrialView
 
-LOST = (
-    "The gamepad was disconnected. The trial is paused. Please plug it in again: the trial "
-    "continues as soon as it is back."
-)
+LOST = describe.DEVICE_LOST
 _ZERO3 = np.zeros(3)
 _ZERO3.setflags(write=False)
 
@@ -121,7 +117,6 @@ class HumanParticipant(ParticipantBase):
         self.world: Any = None
         self._event: Callable[..., None] | None = None
         self._grids: dict[str, OccupancyGrid] = {}
-        self._footprint = np.zeros((4, 2))
         self._limits = (1.0, 1.0)
         self._info: TrialInfo | None = None
         self._pending: list[str] = []
@@ -134,12 +129,10 @@ class HumanParticipant(ParticipantBase):
         self._next_status = 0.0
         self._trial_frames = (0, 0.0, 0)  # screen frames, wall time, camera frames at start
         self._page_clock = pygame.time.Clock()
-        self._title = ""  # the running trial's title and one-line reminder
-        self._reminder = ""
+        self._title = ""  # the running trial's title
+        self._drive: describe.DriveScreen | None = None  # the running trial's screen
         self._ended = ""  # phase of the trial that just ended (names the next page)
-        self._legend: legends.Legend = ()
         self._asked = False  # the running trial has shown a question
-        self._answer_labels = ("Yes", "No")
 
     # -------------------------------------------------------------- plumbing
 
@@ -210,21 +203,23 @@ class HumanParticipant(ParticipantBase):
         self, tag: str, title: str, body: str, inject: Callable[[], Any] | None, verb: str = ""
     ) -> None:
         """A page of text that the Yes button, Enter (or a click) ends."""
-        c, verb = self.controls, verb or "continue"
+        self._show_page(describe.text_page(body, self.controls, title=title, tag=tag, verb=verb),
+                        inject)  # fmt: skip
+
+    def _show_page(self, page: describe.PageScreen, inject: Callable[[], Any] | None) -> None:
+        """Show ``page`` until the Yes button, Enter (or a click) ends it."""
 
         def handle(event: pygame.event.Event | None, actions: list[str]) -> bool:
             click = event is not None and event.type == pygame.MOUSEBUTTONDOWN
             return "confirm" in actions or "yes" in actions or click
 
-        legend, prompt = legends.page_legend(c, verb), legends.prompt_text(c, verb)
-        self._page(tag, lambda: self.screen.draw_page(title, body, legend, prompt), handle, inject)
+        self._page(page.tag, lambda: self.screen.draw_page(page), handle, inject)
 
     def fill(self, instrument: Any, *, context: Mapping[str, Any]) -> dict[str, Any]:
         """A questionnaire page; returns item id -> answer once every required item is set."""
         self._ended = ""
         state = FormState(instrument)
-        numbers = any(item.kind == "number" for item in instrument.items)
-        view = FormView(self.screen, state, legends.form_legend(self.controls, numbers=numbers))
+        view = FormView(self.screen, state, self.controls)
 
         def handle(event: pygame.event.Event | None, actions: list[str]) -> bool:
             if event is not None and event.type == pygame.MOUSEBUTTONDOWN and event.button == 1:
@@ -252,16 +247,12 @@ class HumanParticipant(ParticipantBase):
 
     def choose(self, pairs: Sequence[tuple[str, str]]) -> dict[tuple[str, str], str]:
         """The pairwise comparisons, one page each; pair -> chosen subscale id."""
-        titles = {s.id: s.title for s in nasa_tlx.SUBSCALES}
-        texts = {s.id: s.description for s in nasa_tlx.SUBSCALES}
         self._ended = ""
-        legend = legends.pairs_legend(self.controls)
         if self.driver is not None:
             self.driver.on_choose(pairs)
         out: dict[tuple[str, str], str] = {}
         for k, pair in enumerate(pairs):
-            view = PairView(self.screen, pair, titles, texts, legend)
-            progress = f"Pair {k + 1} of {len(pairs)}"
+            view = PairView(self.screen, (pair[0], pair[1]), k, len(pairs), self.controls)
 
             def handle(
                 event: pygame.event.Event | None, actions: list[str], view: PairView = view
@@ -278,12 +269,7 @@ class HumanParticipant(ParticipantBase):
                 def inject(pair: tuple[str, str] = pair, driver: Any = self.driver) -> None:
                     driver.on_pair(pair)
 
-            self._page(
-                "pair",
-                lambda view=view, progress=progress: view.draw(nasa_tlx.PAIR_QUESTION, progress),
-                handle,
-                inject,
-            )
+            self._page("pair", view.draw, handle, inject)
             assert view.chosen is not None  # the page returns only once chosen
             out[(pair[0], pair[1])] = view.chosen
         return out
@@ -306,7 +292,6 @@ class HumanParticipant(ParticipantBase):
         or Enter."""
         self._info = info
         robot = info.scenario.robot
-        self._footprint = robot.footprint()
         self._limits = (float(robot.max_speed), float(robot.max_yaw_rate))
         self._lost_pause = False
         self._overlay = ""
@@ -315,23 +300,16 @@ class HumanParticipant(ParticipantBase):
         self._next_shot = 0.0
         self._asked = False
         self._ended = ""
-        self.screen.set_trial(info)
-        c = self.controls
-        self._legend = legends.drive_legend(c, drive=info.drive, questions=info.secondary)
-        self._answer_labels = (
-            f"Yes  ({c.pad['yes']} / {c.keys['yes']})",
-            f"No  ({c.pad['no']} / {c.keys['no']})",
+        page, reminder = describe.ready_page(info, self.ui, self.controls)
+        self._title = page.title
+        self._drive = describe.drive_screen(
+            info, self.ui, self.controls, title=page.title, reminder=reminder
         )
-        texts, values = self.ui.texts, trial_values(info)
-        title = self._title = trial_title(info, texts)
-        body = fill(self.ui.instructions.get(info.phase, ""), values)
-        self._reminder = first_sentence(body)
-        if info.phase == "main":
-            body += "\n\n" + fill(texts["break"], values)
+        self.screen.set_trial(self._drive)
         if self.driver is not None:
             self.driver.begin_trial(info)
         inject = (lambda: self.driver.on_ready(info)) if self.driver is not None else None
-        self._text_page(f"{info.phase}_ready", title, body, inject, verb="start")
+        self._show_page(page, inject)
         self._pending.clear()
         self._trial_frames = (self.screen.frames, time.perf_counter(), self.camera.frames)
         self._next_status = time.perf_counter() + self.status_every_s
@@ -394,34 +372,33 @@ class HumanParticipant(ParticipantBase):
         """One frame of the driving screen from the last tick's view (also between ticks)."""
         if pump:
             self._pump()
-        view = self._view
-        if view is None:
+        view, drive = self._view, self._drive
+        if view is None or drive is None:
             return
         self.camera.update()
         overlay = self._overlay
         if not overlay and view.screen.paused:
-            overlay = f"{self.ui.texts['paused']} {legends.resume_text(self.controls)}"
+            overlay = describe.paused_text(self.ui, self.controls)
         text, since = self._confirm
         confirmation = text if text and time.perf_counter() - since < CONFIRM_S else ""
-        drive = self._info is None or self._info.drive
         self.screen.draw_trial(
             TrialView(
                 screen=view.screen,
                 pose=view.pose,
                 points=view.points,
-                stick=self.input.stick() if drive else _ZERO3,
+                stick=self.input.stick() if drive.drive else _ZERO3,
                 camera=self.camera.image,
                 tail_camera=self.camera.tail_image,
                 scan=view.scan,
                 confirmation=confirmation,
                 overlay=overlay,
-                title=self._title,
-                reminder=self._reminder,
-                legend=self._legend,
-                yes_label=self._answer_labels[0],
-                no_label=self._answer_labels[1],
+                title=drive.title,
+                reminder=drive.reminder,
+                legend=drive.legend,
+                yes_label=drive.yes_label,
+                no_label=drive.no_label,
             ),
-            footprint=self._footprint,
+            footprint=np.asarray(drive.footprint),
         )
 
     def status_line(self, screen: ScreenState) -> str:
@@ -459,13 +436,11 @@ class HumanParticipant(ParticipantBase):
             return
         # the runner follows a practice attempt with its result page (read)
         self._ended = info.phase if info.phase == "practice" else ""
-        key = "crashed" if outcome.get("crashed") else "times_up"
-        ended = outcome.get("crashed") or outcome.get("timed_out")
-        if not ended or info.phase not in ("training", "main"):
+        page = describe.ended_page(info, outcome, self.ui, self.controls)
+        if page is None:
             return
-        text = fill(self.ui.texts[key], trial_values(info))
         inject = self.driver.on_page if self.driver is not None else None
-        self._text_page(f"{info.phase}_{key}", self._title, text, inject)
+        self._show_page(page, inject)
 
     def camera_image(self, which: str = "front") -> np.ndarray | None:
         """The front (or tail) camera image on the screen now (the trial loop logs it in

@@ -27,33 +27,28 @@ Decisions where the spec is silent:
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
 import pygame
 
-from study.engine.protocol import (
-    DEFAULT_AXES,
-    DEFAULT_BUTTONS,
-    DEFAULT_INVERT,
-    DEFAULT_KEYS,
-    InputSettings,
+from study.engine.protocol import DEFAULT_KEYS
+
+# the stick's numbers are pure (the browser participant uses them too); re-exported here
+from study.ui.sticks import (  # noqa: F401
+    LAYOUTS,
+    NAV,
+    REPEAT_DELAY_S,
+    REPEAT_EVERY_S,
+    GamepadMapping,
+    NavRepeat,
+    axes_stick,
+    nav_of_stick,
+    total_stick,
 )
 
-# Known layouts as SDL2 / pygame numbers them, keyed by a lower-case fragment of the name.
-LAYOUTS: dict[str, tuple[dict[str, int], dict[str, int]]] = {
-    # F710 in DirectInput mode ("D" switch): X=0 A=1 B=2 Y=3 ... Start=9, right stick x = 2
-    "dual action": ({"vy": 0, "vx": 1, "yaw": 2}, {"yes": 1, "no": 2, "pause": 9}),
-    # Xbox / XInput pads through SDL's XInput backend on Windows: right stick x = 2
-    "xinput": ({"vy": 0, "vx": 1, "yaw": 2}, {"yes": 0, "no": 1, "pause": 7}),
-}
 ACTIONS = ("yes", "no", "pause", "up", "down", "left", "right", "confirm", "quit")
-_NAV_THRESHOLD = 0.6  # stick deflection that counts as one step in a form
-REPEAT_DELAY_S = 0.4  # [s] a held direction repeats after this ...
-REPEAT_EVERY_S = 0.07  # [s] ... once per this
-NAV = ("up", "down", "left", "right")
 _NAV_KEYS = {
     pygame.K_UP: "up",
     pygame.K_DOWN: "down",
@@ -69,59 +64,6 @@ DIGIT_KEYS: dict[int, str] = {
 def key_code(letter: str) -> int:
     """pygame's key code of a letter ``"W"`` (the protocol's ``[input.keys]``)."""
     return int(getattr(pygame, f"K_{letter.lower()}"))
-
-
-@dataclass(frozen=True, slots=True)
-class GamepadMapping:
-    """Axis and button indices of one gamepad layout."""
-
-    axes: Mapping[str, int]  # "vx", "vy", "yaw" -> axis index
-    buttons: Mapping[str, int]  # "yes", "no", "pause" -> button index
-    invert: tuple[str, ...] = DEFAULT_INVERT  # axes whose sign is flipped
-    deadzone: float = 0.1  # [0, 1)
-
-    @classmethod
-    def from_settings(cls, settings: InputSettings) -> GamepadMapping:
-        """The protocol's ``[input]`` mapping."""
-        return cls(
-            axes=dict(settings.axes),
-            buttons=dict(settings.buttons),
-            invert=tuple(settings.invert),
-            deadzone=float(settings.deadzone),
-        )
-
-    def for_device(self, name: str) -> GamepadMapping:
-        """This mapping, or a known layout for a pad called ``name`` if this is the default."""
-        if dict(self.axes) != dict(DEFAULT_AXES) or dict(self.buttons) != dict(DEFAULT_BUTTONS):
-            return self
-        low = name.lower()
-        for fragment, (axes, buttons) in LAYOUTS.items():
-            if fragment in low:
-                return GamepadMapping(axes, buttons, self.invert, self.deadzone)
-        return self
-
-    def stick_to_raw(self, stick: np.ndarray) -> dict[int, float]:
-        """Inverse of :meth:`InputState.stick`: raw axis values that give ``stick`` (3,).
-
-        Used by the event injector so an injected deflection survives the deadzone.
-        """
-        s = np.clip(np.asarray(stick, dtype=float), -1.0, 1.0)
-        dz = self.deadzone
-        out: dict[int, float] = {}
-        m = math.hypot(s[0], s[1])
-        if m > 1.0:
-            s[:2] /= m
-            m = 1.0
-        scale = (dz + m * (1 - dz)) / m if m > 1e-9 else 0.0
-        for i, name in enumerate(("vx", "vy", "yaw")):
-            if name == "yaw":
-                value = math.copysign(dz + abs(s[2]) * (1 - dz), s[2]) if abs(s[2]) > 1e-9 else 0.0
-            else:
-                value = s[i] * scale
-            if name in self.invert:
-                value = -value
-            out[int(self.axes[name])] = float(np.clip(value, -1.0, 1.0))
-        return out
 
 
 @dataclass(slots=True)
@@ -227,14 +169,8 @@ class InputState:
 
     def _stick_nav(self, device: _Device) -> list[str]:
         """Left stick pushed past the threshold: one form step per push."""
-        stick = _device_stick(device)
         out = []
-        for name, on in (
-            ("up", stick[0] > _NAV_THRESHOLD),
-            ("down", stick[0] < -_NAV_THRESHOLD),
-            ("left", stick[1] > _NAV_THRESHOLD),
-            ("right", stick[1] < -_NAV_THRESHOLD),
-        ):
+        for name, on in nav_of_stick(_device_stick(device)).items():
             if on and not device.nav.get(name):
                 out.append(name)
             device.nav[name] = on
@@ -258,18 +194,9 @@ class InputState:
 
     def stick(self) -> np.ndarray:
         """Deflection ``(forwards, left, turn left)`` (3,) in [-1, 1], all devices and keys."""
-        total = np.zeros(3)
-        for device in self.devices.values():
-            total += _device_stick(device)
-        keys, k = self.keys, self.key_codes
-        total[0] += (k["forward"] in keys) - (k["back"] in keys)
-        total[1] += (k["left"] in keys) - (k["right"] in keys)
-        total[2] += (k["turn_left"] in keys) - (k["turn_right"] in keys)
-        m = math.hypot(total[0], total[1])
-        if m > 1.0:
-            total[:2] /= m
-        total[2] = float(np.clip(total[2], -1.0, 1.0))
-        return total
+        pads = [_device_stick(device) for device in self.devices.values()]
+        held = {action for action, code in self.key_codes.items() if code in self.keys}
+        return total_stick(pads, held)
 
     def command(self, max_speed: float, max_yaw_rate: float) -> np.ndarray:
         """The stick as a robot-frame command (3,) [m/s, m/s, rad/s]."""
@@ -278,42 +205,7 @@ class InputState:
 
 
 def _device_stick(device: _Device) -> np.ndarray:
-    m = device.mapping
-    raw = {}
-    for name in ("vx", "vy", "yaw"):
-        value = device.axes.get(int(m.axes[name]), 0.0)
-        raw[name] = -value if name in m.invert else value
-    dz = m.deadzone
-    out = np.zeros(3)
-    mag = math.hypot(raw["vx"], raw["vy"])
-    if mag > dz:
-        scale = min(1.0, (mag - dz) / (1 - dz)) / mag
-        out[0], out[1] = raw["vx"] * scale, raw["vy"] * scale
-    if abs(raw["yaw"]) > dz:
-        out[2] = math.copysign(min(1.0, (abs(raw["yaw"]) - dz) / (1 - dz)), raw["yaw"])
-    return out
-
-
-class NavRepeat:
-    """A form direction held down repeats: after :data:`REPEAT_DELAY_S`, one step every
-    :data:`REPEAT_EVERY_S` (keyboard, D-pad and stick alike; the first step is the press
-    itself). Call :meth:`step` once per frame."""
-
-    def __init__(self) -> None:
-        self._since: dict[str, float] = {}  # direction -> when its next repeat is due
-
-    def step(self, now: float, held: set[str]) -> list[str]:
-        """The repeated steps due at ``now`` [s] for the directions ``held``."""
-        out = []
-        for name in NAV:
-            if name not in held:
-                self._since.pop(name, None)
-                continue
-            due = self._since.setdefault(name, now + REPEAT_DELAY_S)
-            if now >= due:  # one step per call: a stalled frame does not burst
-                out.append(name)
-                self._since[name] = max(due, now - REPEAT_EVERY_S) + REPEAT_EVERY_S
-        return out
+    return axes_stick(device.axes, device.mapping)
 
 
 # Keys of the pages and forms; the protocol's answer and pause keys are added per instance.

@@ -9,7 +9,6 @@ docs/decisions.md (study/ui).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 import pygame
@@ -18,7 +17,7 @@ from sim.occupancy import OccupancyGrid
 from sim.scenario import Scenario
 from sim.scene import Box, Cylinder
 from sim.types import Pose2D
-from study.types import TrialInfo
+from study.ui.describe import Goal, map_cells
 
 FREE = (250, 250, 250)
 OCCUPIED = (70, 70, 70)
@@ -29,19 +28,6 @@ LASER = (170, 40, 210)  # the purple dots (study.engine.texts.LASER_COLOUR_NAME)
 ARROW = (20, 170, 60)
 GOAL = (0, 140, 150)
 MARK_TEXT = (0, 0, 0)
-
-
-@dataclass(frozen=True, slots=True)
-class Goal:
-    """A goal of the trial as drawn: a circle of the position tolerance, and for a pose
-    with a heading (B) an arrow and a wedge of the heading tolerance."""
-
-    label: str  # "A" or "B"
-    x: float  # [m] map frame
-    y: float
-    tolerance_m: float
-    yaw: float | None = None  # [rad] the heading to stop in, None: any
-    tolerance_rad: float = 0.0
 
 
 class MapView:
@@ -71,16 +57,9 @@ class MapView:
         key = scenario.source or scenario.name
         if key == self._key:
             return
-        occ = np.asarray(grid.occupied)
-        rgb = np.empty((*occ.shape, 3), dtype=np.uint8)
-        rgb[:] = FREE
-        rows, cols = occ.shape
-        if len(scenario.question_region):
-            cells = np.stack(np.meshgrid(np.arange(rows), np.arange(cols), indexing="ij"), -1)
-            centres = grid.cell_to_world(cells.reshape(-1, 2))
-            inside = in_polygon(centres, np.asarray(scenario.question_region))
-            rgb[inside.reshape(rows, cols)] = REGION
-        rgb[occ] = OCCUPIED
+        classes = map_cells(scenario, grid)
+        rows, cols = classes.shape
+        rgb = np.array([FREE, REGION, OCCUPIED], dtype=np.uint8)[classes]
         image = np.ascontiguousarray(rgb[::-1].swapaxes(0, 1))  # (cols, rows): x first, y down
         surf = pygame.surfarray.make_surface(image)
         scale = min(self.rect.width / cols, self.rect.height / rows)
@@ -100,17 +79,9 @@ class MapView:
                 self._object = element
         self._key = key
 
-    def set_trial(self, info: TrialInfo) -> None:
-        """The goals of the trial's route, with their tolerances."""
-        scenario, goals = info.scenario, []
-        if "start" in info.route:
-            a = scenario.start
-            tol = info.primary.goal_tolerance_m if info.primary is not None else 0.3
-            goals.append(Goal("A", a.x, a.y, tol))
-        if "dock" in info.route and scenario.dock is not None:
-            d = scenario.dock
-            goals.append(Goal("B", d.pose.x, d.pose.y, d.tolerance_m, d.pose.yaw, d.tolerance_rad))
-        self.goals = tuple(goals)
+    def set_goals(self, goals: tuple[Goal, ...]) -> None:
+        """The goals of the trial's route (:func:`study.ui.describe.goals`)."""
+        self.goals = goals
 
     def to_px(self, xy: np.ndarray) -> np.ndarray:
         """Map-frame points (k, 2) [m] -> window pixels (k, 2)."""
@@ -149,11 +120,14 @@ class MapView:
                 image = self._label(font, label)
                 surface.blit(image, image.get_rect(midbottom=(int(px[0]), int(px[1]) - 8)))
                 labels.append(label)
+        clip = surface.get_clip()
+        surface.set_clip(self.rect)  # hits beyond the map stay in its rectangle
         if len(points):
             for px, py in self.to_px(points).astype(int):
                 pygame.draw.circle(surface, LASER, (px, py), 2)
         if pose is not None:
             self._draw_robot(surface, pose, footprint, stick)
+        surface.set_clip(clip)
         return labels
 
     def _draw_object(self, surface: pygame.Surface) -> None:
@@ -232,18 +206,3 @@ class MapView:
             rect.center = (int(a[0]), int(a[1]))
             lo, hi = (start, start + span) if span > 0 else (start + span, start)
             pygame.draw.arc(surface, ARROW, rect, lo, hi, 3)
-
-
-def in_polygon(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
-    """Even-odd rule: which of ``points`` (k, 2) lie inside ``polygon`` (m, 2)."""
-    x, y = points[:, 0], points[:, 1]
-    inside = np.zeros(len(points), dtype=bool)
-    px, py = polygon[:, 0], polygon[:, 1]
-    j = len(polygon) - 1
-    for i in range(len(polygon)):
-        crosses = (py[i] > y) != (py[j] > y)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            xs = (px[j] - px[i]) * (y - py[i]) / (py[j] - py[i]) + px[i]
-        inside ^= crosses & (x < xs)
-        j = i
-    return inside

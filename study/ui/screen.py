@@ -36,7 +36,8 @@ import pygame
 from sim.occupancy import OccupancyGrid
 from sim.scenario import Scenario
 from sim.types import Pose2D
-from study.types import ScreenState, TrialInfo
+from study.types import ScreenState
+from study.ui.describe import DriveScreen, PageScreen
 from study.ui.laser_view import draw_laser_view
 from study.ui.legend import Legend, draw_legend, legend_height
 from study.ui.map_view import ARROW, LASER, REGION, ROBOT, MapView
@@ -286,18 +287,16 @@ class Screen:
             return
         self._grid = (scenario, grid)
         self.map.set_scene(scenario, grid)
-        marks = [("A", scenario.start.x, scenario.start.y)]
-        if scenario.dock is not None:
-            marks.append(("B", scenario.dock.pose.x, scenario.dock.pose.y))
-        self._marks = tuple(marks)
 
-    def set_trial(self, info: TrialInfo) -> None:
-        """The trial's layout (the question window only if it asks questions) and goals."""
-        if info.secondary != self.questions:
-            self.questions = info.secondary
+    def set_trial(self, drive: DriveScreen) -> None:
+        """The trial's driving screen: the question window only if it asks questions, the
+        goals and the marks A and B on the map."""
+        if drive.questions != self.questions:
+            self.questions = drive.questions
             self._layout()
         if self.show_map:
-            self.map.set_trial(info)
+            self.map.set_goals(drive.goals)
+            self._marks = drive.marks
 
     # -------------------------------------------------------------- frames
 
@@ -392,9 +391,10 @@ class Screen:
                 view.confirmation, (r.right - 20, yes.centery), anchor="midright", colour=HIGHLIGHT
             )
 
-    def draw_page(self, title: str, body: str, legend: Legend = (), prompt: str = "") -> None:
-        """A text screen (briefing, instructions, feedback, time's up, debrief): ``prompt``
+    def draw_page(self, page: PageScreen) -> None:
+        """A text screen (briefing, instructions, feedback, time's up, debrief): the prompt
         (how to go on) just above the legend."""
+        title, body, legend, prompt = page.title, page.body, page.legend, page.prompt
         s = self.surface
         s.fill(BACKGROUND)
         margin = int(self.width * 0.1)

@@ -176,3 +176,12 @@ options("db-push-from-no-file", "db", "push", "--from", "{tmp}/x.db", "--to", "{
 options("db-push-into-itself", "db", "push", "--from", "{tmp}/x.db", "--to", "sqlite:///{tmp}/x.db")
 options("scenario-unknown-subcommand", "scenario", "paint")
 options("stats-dv-missing", "stats", "--csv", "{tmp}/x.csv", "--within", "m", "--subject", "s")
+options("serve-protocol-unknown", "serve", "--protocol", "moon", "--db", "{tmp}/w.db")
+options("serve-port-huge", "serve", "--protocol", "pilot", "--db", "{tmp}/w.db", "--port", "70000")
+options("serve-code-bad", "serve", "--protocol", "pilot", "--db", "{tmp}/w.db", "--invite", "a b")
+options("invite-nothing", "invite", "--db", "{tmp}/w.db")
+options("invite-count-huge", "invite", "--db", "{tmp}/w.db", "--count", "100000")
+options("invite-code-bad", "invite", "--db", "{tmp}/w.db", "--participant", "../x")
+options("snapshots-protocol-unknown", "snapshots", "--protocol", "moon", "--out", "{tmp}/s")
+options("run-recordings-a-file", "run", "--protocol", "pilot", "--participant", "P01", "--db",
+        "{tmp}/r.db", "--recordings", "{tmp}/r.db")  # fmt: skip

@@ -292,3 +292,18 @@ case(
         str(t / "g.toml"),
     ],
 )
+
+# the protocol's [web] table (issue 37)
+for _name, _table in [
+    ("grace-negative", "grace_s = -1"),
+    ("grace-huge", "grace_s = 1e12"),
+    ("stale-zero", "stale_ticks = 0"),
+    ("pings-string", 'pings = "20"'),
+    ("gamepad-string", 'gamepad = "yes"'),
+    ("window-short", "min_window = [1024]"),
+    ("window-tiny", "min_window = [10, 10]"),
+    ("camera-fast", "camera_hz = 1000"),
+    ("url-http", 'completion_url = "http://example.org"'),
+    ("unknown-key", "colour = 3"),
+]:
+    protocol(f"web-{_name}", PILOT + f"\n[web]\n{_table}\n")

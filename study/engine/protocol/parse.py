@@ -14,7 +14,8 @@ practice feedback, pause: :data:`study.engine.texts.DEFAULT_TEXTS`); ``[input]``
 ``[input.axes]``, ``[input.buttons]``, invert, ``[input.keys]`` (the keyboard's letters),
 ``[input.names]`` (what the legends call the gamepad's controls); ``[recording]``
 camera_hz, camera_width, jpeg_quality; ``[lsl]`` outlets, mode_names, resolve_timeout_s,
-``[[lsl.record]]`` (the lab's streams: :mod:`study.lsl.settings`).
+``[[lsl.record]]`` (the lab's streams: :mod:`study.lsl.settings`); ``[web]`` (a session from
+a browser link: :mod:`study.web.settings`).
 The participant's texts may hold placeholders (``{object}``, ``{attempt}``, ...; which ones
 each may use: :func:`study.engine.texts.allowed_placeholders`); ``{object}`` and
 ``{laser_colour}`` are filled here, from the main scene. The shipped files in
@@ -73,6 +74,7 @@ from study.engine.protocol.types import (
     Training,
 )
 from study.lsl.settings import lsl_settings
+from study.web.settings import web_settings
 from tasks.secondary import SecondarySettings
 
 SITE_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_-]{0,31}\Z")  # a site's name
@@ -486,6 +488,7 @@ def parse_protocol(
     inp = input_settings(r.sub("input"))
     recording = _recording(r.sub("recording"))
     lsl = lsl_settings(r.sub("lsl"), "lsl" in data)
+    web = web_settings(r.sub("web"))
     r.finish()
     main = next(p for p in phases if isinstance(p, MainTrials))
     phases, ui = protocol_words(r, phases, ui, scenarios.cache[main.scenario])
@@ -504,6 +507,7 @@ def parse_protocol(
         input=inp,
         recording=recording,
         lsl=lsl,
+        web=web,
         text=text,
         sha256=hashlib.sha256(text.encode("utf-8")).hexdigest(),
     )

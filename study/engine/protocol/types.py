@@ -12,6 +12,7 @@ from questionnaires import experience as experience_q
 from questionnaires import nasa_tlx
 from study.engine.texts import DEFAULT_TEXTS
 from study.lsl.settings import LslSettings
+from study.web.settings import WebSettings
 from tasks.secondary import SecondarySettings
 
 PHASE_KINDS: tuple[str, ...] = (
@@ -314,6 +315,7 @@ class Protocol:
     sha256: str  # hex SHA-256 of ``text`` in UTF-8
     recording: RecordingSettings = field(default_factory=RecordingSettings)
     lsl: LslSettings = field(default_factory=LslSettings)  # [lsl]: outlets, the lab's streams
+    web: WebSettings = field(default_factory=WebSettings)  # [web]: a session from a browser
 
     def __post_init__(self) -> None:
         if hashlib.sha256(self.text.encode("utf-8")).hexdigest() != self.sha256:

@@ -4,7 +4,8 @@
 A scripted skill (:mod:`tasks.skills`) behind a simulated human stick drives the world in
 manual mode, one run per demonstration (:mod:`.record`), from a random start
 (:mod:`.starts`); every tick is stored in one ``.npz`` per run with a manifest and loaded
-back checked (:mod:`.files`). The choices where the spec is silent are in
+back checked (:mod:`.files`); the candidates' passage normals come from the runs' scenes
+(:mod:`.normals`). The choices where the spec is silent are in
 docs/decisions.md.
 """
 
@@ -17,6 +18,7 @@ from study.jobs.demonstrations.files import (
     load_demonstrations,
     summarise,
 )
+from study.jobs.demonstrations.normals import candidate_normals
 from study.jobs.demonstrations.record import (
     MOVING_SPEED,
     RecordSettings,
@@ -53,6 +55,7 @@ __all__ = [
     "FreeSpace",
     "RecordSettings",
     "RunRecord",
+    "candidate_normals",
     "candidates_of",
     "load_demonstrations",
     "plan_recording",
