@@ -9,7 +9,10 @@ over every moment ``j`` of a metric that a fitted block drives (:data:`model.DRI
 ``t_j`` the pilot's moment, ``se_j`` its bootstrap standard error (moments with se 0 or
 undefined are reported, not fitted) and ``m_j(theta)`` the bank's moment under the
 importance weights of ``theta`` (:func:`model.block_log_ratios`). Minimised by Nelder-Mead
-within each parameter's search bounds. Every candidate costs array arithmetic on the bank,
+within each parameter's search bounds. A candidate under which a fitted metric's bank has
+fewer than :func:`ess_floor` effective entries (Kish) is outside what the bank can
+represent: its moments rest on a handful of entries, so the objective adds a barrier that
+grows as the effective size falls below the floor (docs/decisions.md, "asa calibrate"). Every candidate costs array arithmetic on the bank,
 no simulation. The bootstrap redraws the pilot's participants *and* the bank's entries, so
 an interval carries both the pilot's sampling error and the bank's Monte Carlo error.
 """
@@ -27,6 +30,14 @@ from study.jobs.calibrate.model import DRIVERS, Parameter, block_log_ratios
 from study.jobs.calibrate.moments import Wide, moments, sample_moments
 
 PENALTY = 1e6  # objective of a candidate whose weighted moments are undefined
+ESS_SHARE = 0.25  # the floor of a metric's effective bank size, as a share of the bank
+ESS_MIN = 20.0  # ... and at most this many entries (banks over 80)
+BARRIER = 100.0  # objective per missing effective entry below the floor
+
+
+def ess_floor(bank_size: int) -> float:
+    """The fewest effective bank entries a candidate's moments may rest on."""
+    return min(ESS_MIN, ESS_SHARE * bank_size)
 
 
 @dataclass(frozen=True, slots=True)
@@ -80,9 +91,10 @@ def simulated(problem: Problem, x: np.ndarray, bank_counts: np.ndarray) -> dict:
 
 def objective(x, problem: Problem, targets: Mapping, bank_counts: np.ndarray) -> float:
     """J(x) (module docstring)."""
-    sims, _ = simulated(problem, x, bank_counts)
-    total = 0.0
+    sims, ess = simulated(problem, x, bank_counts)
+    total, floor = 0.0, ess_floor(problem.bank_size())
     for metric in problem.fitted_metrics():
+        total += BARRIER * max(0.0, floor - ess[metric])
         se = problem.se[metric]
         use = np.isfinite(targets[metric]) & np.isfinite(se) & (se > 0)
         diff = (sims[metric][use] - targets[metric][use]) / se[use]

@@ -37,7 +37,7 @@ from study.participants.population import ParticipantParams, Population
 SPEED_CLIP = (0.12, 0.6)  # [m/s] the calibrated population's speed_range
 ANSWER_CLIP = (1.4, 3.2)  # [s] Population.sample's clip of answer_time_s
 SLOWDOWN_SUPPORT = (1.0, 2.6)  # proposal of dual_task_slowdown
-TLX_PROPOSAL_SD = 16.0  # [points] proposal of tlx_bias: normal(0, this)
+TLX_PROPOSAL_SD = 20.0  # [points] proposal of tlx_bias: normal(0, this)
 EDGE_P = 0.05  # proposal's mass at each clip bound
 SMOOTH = 0.02  # sd of the normal smoothing the uniform slowdown's edges (weights only)
 
@@ -58,8 +58,8 @@ PARAMETERS: tuple[Parameter, ...] = (
     Parameter("speed_sigma", "speed", (0.04, 0.5), "", "log-normal sigma of preferred speed"),
     Parameter("answer_time_median_s", "answer", (1.5, 3.0), "s", "median answer time"),
     Parameter("slowdown_mid", "answer", (1.05, 2.3), "", "mean dual-task slowdown"),
-    Parameter("tlx_bias_mean", "tlx", (-20.0, 20.0), "points", "mean NASA-TLX bias"),
-    Parameter("tlx_bias_sd", "tlx", (2.0, 14.0), "points", "NASA-TLX bias sd between people"),
+    Parameter("tlx_bias_mean", "tlx", (-25.0, 25.0), "points", "mean NASA-TLX bias"),
+    Parameter("tlx_bias_sd", "tlx", (1.0, 25.0), "points", "NASA-TLX bias sd between people"),
 )
 BY_PARAMETER = {p.name: p for p in PARAMETERS}
 BLOCKS = ("speed", "answer", "tlx")
