@@ -76,10 +76,10 @@ def parameter_figure(params: Sequence[Mapping], level: str) -> Figure:
         ax.hlines(y, low, high, color=INTERVAL_COLOUR, linewidth=5, zorder=2)
         ax.plot(base, y, "|", color=BASE_COLOUR, markersize=18, mew=2.5, zorder=3)
         ax.plot(estimate, y, "o", color="black", markersize=6, zorder=4)
-        ax.text(estimate, y + 0.22, _num(p["estimate"]), ha="center", fontsize=8,
+        ax.text(estimate, y + 0.22, f"{p['estimate']:.3g}", ha="center", fontsize=8,
                 parse_math=False)  # fmt: skip
         for x, v, ha in ((-0.015, lo, "right"), (1.015, hi, "left")):
-            ax.text(x, y, _num(v), ha=ha, va="center", fontsize=8, color="#555555")
+            ax.text(x, y, f"{v:.3g}", ha=ha, va="center", fontsize=8, color="#555555")
     labels = [p["name"] + (f" [{p['unit']}]" if p["unit"] else "") for p in reversed(params)]
     ax.set_yticks(range(n), labels or [""], parse_math=False)
     ax.set_ylim(-0.6, n - 0.4)
@@ -103,7 +103,8 @@ def _z_point(ax, y: float, z: float | None, colour: str, fitted: bool) -> None:
     """One moment's z: filled when fitted, hollow when not, an arrow at the edge beyond
     :data:`Z_LIMIT`, ``n/a`` where it is undefined."""
     if not _finite(z):
-        ax.text(0.0, y, "n/a", ha="center", va="center", fontsize=7, color="#777777")
+        ax.text(0.0, y, "n/a", ha="center", va="center", fontsize=7, color="#777777",
+                bbox={"facecolor": "white", "edgecolor": "none", "pad": 0.5})  # fmt: skip
         return
     beyond = abs(z) > Z_LIMIT
     x = math.copysign(Z_LIMIT, z) if beyond else z
@@ -173,7 +174,7 @@ def _blocks_sentences(result: Mapping) -> str:
     if kept:
         parts = [
             f"the {b} block's {_and(names)} (identified only by {_and(by.get(b, ('?',)))}"
-            + (" with its baseline level" if b == "answer" else "") + ", not planned here)"
+            + (" with its baseline level" if b == "answer" else "") + ", which this study lacks)"
             for b, names in kept.items()
         ]  # fmt: skip
         words.append(f"Kept at the base population's values: {_and(parts)}.")
