@@ -154,6 +154,8 @@ def test_a_known_population_is_recovered_small(tmp_path, seed):
     for f in dataclasses.fields(Population):  # the file keeps 6 decimals
         assert np.allclose(getattr(loaded, f.name), getattr(summary.population, f.name), atol=1e-6)
     assert "[calibration]" in out.read_text() and str(db) in out.read_text()
+    assert summary.html == tmp_path / "population.html"
+    assert "speed_sigma" in summary.html.read_text()
     moments = json.loads(out.with_suffix(".json").read_text())["moments"]
     names = {m["moment"] for m in moments}
     assert "completion_time_s: corr manual~reactive_bn" in names

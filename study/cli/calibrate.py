@@ -29,7 +29,8 @@ from study.cli import COUNT, SEED, WORKERS
     default=Path("population.toml"),
     show_default=True,
     help="The population file to write (read by --population of asa synth, pilot, power); "
-    "the reports FILE.json and FILE.txt and the bank FILE_bank.sqlite go beside it.",
+    "the reports FILE.json, FILE.txt and FILE.html (e.g. population.html) and the bank "
+    "FILE_bank.sqlite go beside it.",
 )
 @click.option(
     "--bank",
@@ -112,4 +113,4 @@ def calibrate(
     summary = run_calibration(source, out, settings, progress=ProgressBar())
     for line in summary.lines:
         click.echo(line)
-    click.echo(f"{summary.out} ({summary.json}, {summary.text})")
+    click.echo(f"{summary.out} ({summary.json}, {summary.text}, {summary.html})")

@@ -5,8 +5,8 @@
 protocol on Dask with the fitted blocks drawn from a wide proposal
 (:mod:`study.jobs.calibrate.model`), fits the population parameters by the method of
 simulated moments on that bank (:mod:`study.jobs.calibrate.fit`), bootstraps the fit on
-Dask, and writes the population file (with its ``[calibration]`` table), a JSON and a text
-report beside it.
+Dask, and writes the population file (with its ``[calibration]`` table), a JSON, a text and
+an HTML report beside it.
 """
 
 from __future__ import annotations
@@ -29,7 +29,9 @@ from sim.limits import MAX_COUNT, MAX_SEED
 from study.jobs.calibrate.fit import Problem, bootstrap_fits, fit, pilot_targets
 from study.jobs.calibrate.model import (
     BLOCK_FIELDS,
+    BLOCKS,
     IDENTIFIES,
+    PARAMETERS,
     Proposal,
     active_blocks,
     base_values,
@@ -66,6 +68,7 @@ class CalibrationSummary:
     out: Path  # the population file
     json: Path
     text: Path
+    html: Path
     lines: tuple[str, ...]
     result: dict[str, Any]
     population: Population
@@ -184,8 +187,9 @@ def run_calibration(
     Parameters
     ----------
     source : the study database (file or URL) or ``asa export`` folder.
-    out : the population file to write (TOML); ``.json`` and ``.txt`` reports and the bank
-        (``<stem>_bank.sqlite``, continued by a later run with the same settings) beside it.
+    out : the population file to write (TOML); ``.json``, ``.txt`` and ``.html`` reports and
+        the bank (``<stem>_bank.sqlite``, continued by a later run with the same settings)
+        beside it.
     settings : :class:`CalibrateSettings`.
     progress : called with (stage, done, total); stage "bank" or "replicates".
 
@@ -260,10 +264,23 @@ def _result(data, source, s, engine, problem, estimate, reps, timing) -> dict[st
             "level": s.level,
             "seed": s.seed,
             "engine": engine,
+            "se_draws": SE_DRAWS,
         },  # fmt: skip
         "method": "simulated moments, importance-weighted bank, Nelder-Mead; "
         "bootstrap of participants and bank entries",
         "blocks": list(problem.blocks),
+        "identified_by": {b: [m for m, i in IDENTIFIES.items() if i == b] for b in BLOCKS},
+        "not_fitted": [
+            {
+                "name": p.name,
+                "block": p.block,
+                "unit": p.unit,
+                "meaning": p.meaning,
+                "base": float(problem.fixed[p.name]),
+            }
+            for p in PARAMETERS
+            if p.block not in problem.blocks
+        ],  # fmt: skip
         "parameters": params,
         "values": {p["name"]: p["estimate"] for p in params},
         "moments": moment_rows(problem, estimate),
@@ -272,6 +289,8 @@ def _result(data, source, s, engine, problem, estimate, reps, timing) -> dict[st
 
 
 def _write(out: Path, population: Population, result: dict) -> CalibrationSummary:
+    from analysis.calibration_report import write_calibration_report  # matplotlib: lazily
+
     calibration = {
         "method": result["method"], "study": result["study"]["file"],
         "study_name": result["study"]["name"],
@@ -289,4 +308,5 @@ def _write(out: Path, population: Population, result: dict) -> CalibrationSummar
     json_path, text_path = out.with_suffix(".json"), out.with_suffix(".txt")
     json_path.write_text(json.dumps(result, indent=1, allow_nan=True) + "\n", encoding="utf-8")
     text_path.write_text("\n".join(lines) + "\n", encoding="utf-8")
-    return CalibrationSummary(out, json_path, text_path, lines, result, population)
+    html = write_calibration_report(result, out)
+    return CalibrationSummary(out, json_path, text_path, html, lines, result, population)
