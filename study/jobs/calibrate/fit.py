@@ -12,9 +12,10 @@ importance weights of ``theta`` (:func:`model.block_log_ratios`). Minimised by N
 within each parameter's search bounds. A candidate under which a fitted metric's bank has
 fewer than :func:`ess_floor` effective entries (Kish) is outside what the bank can
 represent: its moments rest on a handful of entries, so the objective adds a barrier that
-grows as the effective size falls below the floor (docs/decisions.md, "asa calibrate"). Every candidate costs array arithmetic on the bank,
-no simulation. The bootstrap redraws the pilot's participants *and* the bank's entries, so
-an interval carries both the pilot's sampling error and the bank's Monte Carlo error.
+grows as the effective size falls below the floor (docs/decisions.md, "asa calibrate").
+Every candidate costs array arithmetic on the bank, no simulation. The bootstrap redraws
+the pilot's participants *and* the bank's entries, so an interval carries both the pilot's
+sampling error and the bank's Monte Carlo error.
 """
 
 from __future__ import annotations
