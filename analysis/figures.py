@@ -53,12 +53,17 @@ def save(fig: Figure, folder: Path, stem: str) -> tuple[Path, Path, str]:
     png = folder / f"{stem}.png"
     svg = folder / f"{stem}.svg"
     fig.savefig(png, format="png", dpi=100)
-    buffer = io.StringIO()
-    with matplotlib.rc_context({"svg.fonttype": "none"}):  # text as text: small, searchable
-        fig.savefig(buffer, format="svg", metadata={"Date": None})
-    text = buffer.getvalue()
+    text = svg_text(fig)
     svg.write_text(text, encoding="utf-8")
     return png, svg, text[text.index("<svg") :]
+
+
+def svg_text(fig: Figure) -> str:
+    """The figure as an SVG document (its text as text: small, searchable; no date)."""
+    buffer = io.StringIO()
+    with matplotlib.rc_context({"svg.fonttype": "none"}):
+        fig.savefig(buffer, format="svg", metadata={"Date": None})
+    return buffer.getvalue()
 
 
 def metric_figure(long: pd.DataFrame, metric: Metric, modes: tuple[str, ...]) -> Figure:

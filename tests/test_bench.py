@@ -94,3 +94,14 @@ def test_power_group_reports_bank_and_resampling_rates(capsys) -> None:
     budgets = figures["budgets"]
     assert set(budgets) == {"bank_trial_cpu_factor", "scaling_2_vs_1", "power_thesis_estimate_s"}
     assert budgets["power_thesis_estimate_s"]["met"] is None  # --quick drives no thesis bank
+
+
+@pytest.mark.slow
+def test_calibrate_group_reports_wall_times_and_scaling(capsys) -> None:
+    figures = bench_json(capsys, "calibrate")
+    assert figures["calibrate_bank"] == 10 and figures["calibrate_participants"] == 4
+    assert figures["calibrate_s_1"] > 0 and figures["calibrate_s_2"] > 0
+    assert figures["calibrate_scaling_2_vs_1"] == pytest.approx(
+        figures["calibrate_s_1"] / figures["calibrate_s_2"], rel=0.01
+    )
+    assert set(figures["budgets"]) == {"calibrate_scaling_2_vs_1"}

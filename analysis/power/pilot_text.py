@@ -119,7 +119,11 @@ def pilot_limitations(result: Mapping) -> list[str]:
         "interest.",
         "The fitted model is normal: counts (collisions, errors) and ratings are simulated "
         "as continuous values, so a test planned on ranks (Friedman) is simulated on data "
-        "without the ties the real measure has.",
+        "without the ties the real measure has. For a count that is mostly zero (and a "
+        "score that jumps with it) the normal model can overstate the power of small "
+        "studies and understate that of larger ones (measured against resampling the same "
+        "people: docs/results.md, issue 39); for such metrics prefer asa power on a "
+        "population calibrated to the pilot (asa calibrate).",
         "The model has no order effects: counterbalancing is not simulated.",
         "The bootstrap replicates' spread includes the Monte Carlo error of the "
         f"{max(1, s['studies'] // s['draws'])} studies each replicate gets per N.",

@@ -32,6 +32,7 @@ GROUPS: dict[str, str] = {
     "map_semantics": "study.bench.map_semantics",
     "storage": "study.bench.storage",
     "power": "study.bench.power",
+    "calibrate": "study.bench.calibrate",
     "push": "study.bench.push",
     "lsl": "study.bench.lsl",
     "web": "study.bench.web",

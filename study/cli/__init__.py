@@ -60,6 +60,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "study.cli.power:power",
         "How many participants each planned test needs: simulated on Dask.",
     ),
+    "calibrate": (
+        "study.cli.calibrate:calibrate",
+        "Fit the synthetic population to a study's people (a population file).",
+    ),
     "stats": (
         "study.cli.stats:stats",
         "Repeated-measures ANOVA, sphericity and LSD for any long CSV.",

@@ -17,7 +17,11 @@ import click
 
 from study.cli import COUNT, SEED, WORKERS
 
-STAGES = {"bank": "bank participants", "studies": "resampled studies"}
+STAGES = {
+    "bank": "bank participants",
+    "studies": "resampled studies",
+    "replicates": "bootstrap replicates",
+}
 LOG_EVERY_S = 30.0  # [s] between progress lines when stderr is not a terminal
 
 

@@ -1,6 +1,6 @@
 """Population files: a synthetic population model as TOML (issue 39), read by ``asa synth``,
-``asa pilot`` and ``asa power`` (``--population``); ``asa calibrate`` (issue 39, not built
-yet) is to write them.
+``asa pilot`` and ``asa power`` (``--population``); ``asa calibrate`` writes them
+(with a ``[calibration]`` table of its provenance).
 
 The file has one table ``[population]`` whose keys are fields of
 :class:`study.participants.population.Population` (any subset; the rest keep their

@@ -44,6 +44,7 @@ class BankJob:
     session_seed: int
     behaviour_seed: int
     population: Population
+    proposal: Any = None  # redraws some person-level values (asa calibrate's bank), or None
 
 
 @dataclass(frozen=True, slots=True)
@@ -98,9 +99,15 @@ def bank_root(protocol: Protocol) -> int:
 
 
 def bank_jobs(
-    protocol: Protocol, seed: int, indices: Iterable[int], population: Population
+    protocol: Protocol,
+    seed: int,
+    indices: Iterable[int],
+    population: Population,
+    proposal: Any = None,
 ) -> list[BankJob]:
-    """The jobs of bank entries ``indices``, seeded from (protocol hash, seed, index)."""
+    """The jobs of bank entries ``indices``, seeded from (protocol hash, seed, index);
+    ``proposal`` (an object with ``draw(person, rng) -> person``, e.g.
+    :class:`study.jobs.calibrate.model.Proposal`) redraws part of each person."""
     from study.engine.runner import derive_seed
 
     cut, root = bank_protocol(protocol), bank_root(protocol)
@@ -111,6 +118,7 @@ def bank_jobs(
             session_seed=derive_seed(root, seed, i),
             behaviour_seed=derive_seed(root, seed, i, 1),
             population=population,
+            proposal=proposal,
         )
         for i in indices
     ]
@@ -127,7 +135,10 @@ def run_entry(job: BankJob) -> BankEntry:
 
     wall, cpu = time.perf_counter(), time.process_time()
     rng = np.random.default_rng(job.behaviour_seed)
-    participant = SyntheticParticipant(job.population.sample(rng), rng)
+    person = job.population.sample(rng)
+    if job.proposal is not None:
+        person = job.proposal.draw(person, rng)
+    participant = SyntheticParticipant(person, rng)
     with tempfile.TemporaryDirectory(prefix="asa-bank-") as folder:
         db = Path(folder) / "entry.db"
         summary = run_session(

@@ -171,8 +171,11 @@ def _identity(proto: Protocol, s: PowerSettings) -> dict[str, Any]:
     }
 
 
-def build_bank(client, bank: BankFile, proto: Protocol, s: PowerSettings, say: Progress) -> float:
-    """Drive the bank entries not yet in the bank file; each stored as it completes."""
+def build_bank(
+    client, bank: BankFile, proto: Protocol, s: PowerSettings, say: Progress, proposal=None
+) -> float:
+    """Drive the bank entries not yet in the bank file; each stored as it completes
+    (``proposal``: see :func:`study.jobs.power.bank.bank_jobs`)."""
     from distributed import as_completed
 
     start = time.perf_counter()
@@ -182,7 +185,7 @@ def build_bank(client, bank: BankFile, proto: Protocol, s: PowerSettings, say: P
     say("bank", done, total)
     futures = [
         client.submit(run_entry, job, pure=False, key=f"bank-{job.index}-{job.session_seed}")
-        for job in bank_jobs(proto, s.seed, todo, s.population)
+        for job in bank_jobs(proto, s.seed, todo, s.population, proposal)
     ]
     try:
         for future in as_completed(futures):
