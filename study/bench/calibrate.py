@@ -58,7 +58,7 @@ def run(quick: bool) -> dict:
     -------
     dict
         ``calibrate_protocol``, ``calibrate_participants`` (the target study's) and
-        ``calibrate_bank`` (thesis-7-6, 6 participants, a bank of 8; with ``quick`` a
+        ``calibrate_bank`` (thesis-7-6, 6 participants, a bank of 10; with ``quick`` a
         two-mode protocol on the practice course, 4 and 10); ``calibrate_s_1`` and
         ``calibrate_s_2``: wall seconds of the calibration on 1 and 2 worker processes
         (bank, fit and 20 bootstrap replicates; the cluster's start not included);
@@ -73,7 +73,7 @@ def run(quick: bool) -> dict:
             (folder / "quick.toml").write_text(QUICK_PROTOCOL)
             protocol, people, bank = load_protocol(folder / "quick.toml"), 4, 10
         else:
-            protocol, people, bank = load_protocol("thesis-7-6"), 6, 8
+            protocol, people, bank = load_protocol("thesis-7-6"), 6, 10
         db = folder / "target.db"
         run_synthetic_study(
             bank_protocol(protocol), db, participants=people, seed=_SEED, workers=2,
