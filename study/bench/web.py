@@ -12,23 +12,7 @@ the camera at 10 Hz, the browser drawing at 30 fps or more).
 - **with the pages**: 1, 2 and 4 headless Chromium pages at once on the same machine (1
   with ``quick``), each a scripted person with a faked gamepad (:mod:`study.web.testing`).
 
-Figures:
-
-- ``web_sessions_sustained`` (the budget's): the most sessions of the server alone at once
-  for which every session completed, every trial kept its 20 Hz (stored tick jitter p99 at
-  most 10 ms) and every client got at least 9 camera frames a second while driving;
-  ``web_sessions_sustained_with_pages``: the same judged with the pages;
-- ``web_server_cpu_per_session``: CPU of the server and its session and camera processes
-  while every client drives, in cores per session, the server alone (the highest over the
-  numbers of sessions); ``web_server_cpu_per_session_with_pages``: the same beside the
-  pages (their own CPU not counted);
-- ``web_rtt_ms`` and ``web_input_age_ticks``: p50 and p99 of the stored round trips
-  (``sample.rtt_ms``) and input ages of every tick with the pages (a page answers on its
-  next animation frame, as a participant's does); ``web_server_alone_rtt_ms``: the round
-  trips with the clients;
-- ``web_browser_fps``: the lowest frame rate of a page while driving;
-- ``web_per_sessions`` and ``web_server_alone_per_sessions``: the figures per number of
-  sessions.
+The figures are listed in :func:`run`.
 """
 
 from __future__ import annotations
@@ -69,7 +53,27 @@ CAMERA_OK_FPS = 9.0  # [1/s] camera frames a page must get (10 Hz asked)
 
 
 def run(quick: bool = False) -> dict:
-    """The ``web`` figures (see the module docstring)."""
+    """The ``web`` figures.
+
+    Returns
+    -------
+    dict
+        - ``web_sessions_sustained`` (the budget's): the most sessions of the server alone at once
+          for which every session completed, every trial kept its 20 Hz (stored tick jitter p99 at
+          most 10 ms) and every client got at least 9 camera frames a second while driving;
+          ``web_sessions_sustained_with_pages``: the same judged with the pages;
+        - ``web_server_cpu_per_session``: CPU of the server and its session and camera processes
+          while every client drives, in cores per session, the server alone (the highest over the
+          numbers of sessions); ``web_server_cpu_per_session_with_pages``: the same beside the pages
+          (their own CPU not counted);
+        - ``web_rtt_ms`` and ``web_input_age_ticks``: p50 and p99 of the stored round trips
+          (``sample.rtt_ms``) and input ages of every tick with the pages (a page answers on its
+          next animation frame, as a participant's does); ``web_server_alone_rtt_ms``: the round
+          trips with the clients;
+        - ``web_browser_fps``: the lowest frame rate of a page while driving;
+        - ``web_per_sessions`` and ``web_server_alone_per_sessions``: the figures per number of
+          sessions.
+    """
     trial_s = 8.0 if quick else 20.0
     alone = {str(n): _server_alone(n, trial_s) for n in ((1,) if quick else (1, 2, 4, 6))}
     pages = {str(n): _sessions(n, trial_s) for n in ((1,) if quick else (1, 2, 4))}
