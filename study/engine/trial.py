@@ -19,7 +19,7 @@ import numpy as np
 from sqlalchemy.engine import Engine
 
 from autonomy.types import Assist, Mode, RobotModel
-from sim.scenario import Scenario, point_in_region
+from sim.scenario import point_in_region
 from sim.types import Contact, Pose2D
 from study.data.recording import NoRecording, TrialRecorder
 from study.engine.clocks import DT, ExperimenterControl, FreeClock, WallClock
@@ -37,13 +37,19 @@ from study.engine.stages import (
     TASKS,
     StageClock,
 )
-from study.engine.trial_spec import Scene, TrialResult, TrialSpec, recording_relpath
+from study.engine.trial_spec import (
+    Scene,
+    TrialResult,
+    TrialSpec,
+    recording_relpath,
+    secondary_task,
+)
 from study.participants.base import Participant
 from study.types import ParticipantInput, ScreenState, TickRecord, TrialInfo
 from tasks.clearance import RangeStats, lrf_range
 from tasks.geometry import footprint_clearance
 from tasks.primary import PrimaryTask
-from tasks.secondary import SecondaryTask, summarise
+from tasks.secondary import summarise
 
 if TYPE_CHECKING:
     from study.lsl.session import SessionLsl
@@ -118,7 +124,7 @@ class TrialLoop:
         self.primary = (
             PrimaryTask(scenario, settings=spec.primary) if spec.primary is not None else None
         )
-        self.secondary = _secondary_task(spec, scenario, rng)
+        self.secondary = secondary_task(spec, scenario, rng)
         self.time_limit = spec.primary.timeout_s if spec.primary is not None else math.inf
         self.writer = TrialWriter(engine, session_id)
         self.trial_id = self.writer.start(
@@ -506,19 +512,6 @@ class TrialLoop:
 def _prepared(obs: Any) -> bool:
     """Whether ``obs``'s semantic components were put into the robot frame (read)."""
     return bool(getattr(obs.components, "prepared", False))
-
-
-def _secondary_task(
-    spec: TrialSpec, scenario: Scenario, rng: np.random.Generator
-) -> SecondaryTask | None:
-    """The questions: the baseline block, or in the scenario's question region, or none."""
-    if spec.secondary is None:
-        return None
-    if spec.baseline:
-        return SecondaryTask.baseline(rng, settings=spec.secondary)
-    if len(scenario.question_region):
-        return SecondaryTask(rng, settings=spec.secondary, first_block=spec.rehearsal_questions)
-    return None
 
 
 def run_trial(

@@ -1,6 +1,6 @@
 """What a trial is and how it ended (:class:`TrialSpec`, :class:`TrialResult`), the scene
-it runs in (:class:`Scene`) and where its recording goes (:func:`recording_relpath`); the
-loop that runs it is :mod:`study.engine.trial`."""
+it runs in (:class:`Scene`), where its recording goes (:func:`recording_relpath`) and its
+questions (:func:`secondary_task`); the loop that runs it is :mod:`study.engine.trial`."""
 
 from __future__ import annotations
 
@@ -10,6 +10,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from sim.occupancy import OccupancyGrid
 from sim.scenario import Scenario
 from sim.types import SemanticComponent
@@ -17,7 +19,7 @@ from sim.world import World
 from study.data.paths import file_in
 from study.data.recording import RecorderSettings
 from tasks.primary import PrimarySettings
-from tasks.secondary import SecondarySettings
+from tasks.secondary import SecondarySettings, SecondaryTask
 
 
 @dataclass(frozen=True, slots=True)
@@ -103,3 +105,16 @@ def recording_relpath(
         n += 1
         path = base.with_name(f"{base.name}_{n}.rrd")
     return os.path.relpath(path, folder)
+
+
+def secondary_task(
+    spec: TrialSpec, scenario: Scenario, rng: np.random.Generator
+) -> SecondaryTask | None:
+    """The questions: the baseline block, or in the scenario's question region, or none."""
+    if spec.secondary is None:
+        return None
+    if spec.baseline:
+        return SecondaryTask.baseline(rng, settings=spec.secondary)
+    if len(scenario.question_region):
+        return SecondaryTask(rng, settings=spec.secondary, first_block=spec.rehearsal_questions)
+    return None
